@@ -1,0 +1,1 @@
+"""Built-in o3dheat filters."""

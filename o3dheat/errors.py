@@ -1,0 +1,32 @@
+"""The o3dheat exception family.
+
+Every error raised on purpose by o3dheat is one of these two, with a message that says what was
+wrong and what to do about it.
+"""
+
+__all__ = ["MeshError", "SolverError"]
+
+
+class MeshError(ValueError):
+    """Bad input: a mesh, a field, a time or a parameter that o3dheat cannot work with.
+
+    Examples
+    --------
+    >>> import numpy as np, o3dheat
+    >>> try:
+    ...     o3dheat.as_arrays((np.zeros((0, 3)), np.zeros((0, 3), int)))
+    ... except o3dheat.MeshError as e:
+    ...     print("empty" in str(e))
+    True
+    """
+
+
+class SolverError(RuntimeError):
+    """A numerical solver failed (factorization, eigensolver, time stepping).
+
+    Examples
+    --------
+    >>> import o3dheat
+    >>> issubclass(o3dheat.SolverError, RuntimeError)
+    True
+    """

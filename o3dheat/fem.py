@@ -1,0 +1,159 @@
+"""Linear-FEM operators on triangle meshes: cotangent stiffness, consistent and lumped mass,
+Voronoi (mixed) areas.
+
+Conventions (the paper's eq. (3), sign flipped so that L is positive semi-definite):
+
+* ``L[i, j] = -(cot a_ij + cot b_ij) / 2`` for an edge ``ij`` (one cotangent on a boundary edge),
+  ``L[i, i] = -sum_j L[i, j]``: symmetric, rows sum to 0, eigenvalues >= 0. ``L`` does not change
+  when the mesh is scaled.
+* ``B[i, j] = (|t_r| + |t_s|) / 12`` for an edge shared by triangles ``t_r, t_s``,
+  ``B[i, i] = sum_{t ∋ i} |t| / 6``: the Gram matrix of the hat functions, symmetric positive
+  definite, ``1ᵀ B 1`` = surface area; it scales with the square of the mesh size.
+* lumped mass: ``diag(B 1)`` (a third of the area of the triangles at a vertex);
+  Voronoi mass: ``diag(a)`` with the mixed Voronoi areas ``a`` of Meyer et al. (2003).
+
+All functions take ``V (n, 3) float64`` and ``F (m, 3) int`` arrays (see :func:`o3dheat.as_arrays`)
+and return ``scipy.sparse.csc_matrix`` of shape ``(n, n)``, float64.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import MeshError
+
+__all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas"]
+
+
+def _corner_geometry(V, F):
+    """Per-face double areas and the cotangent at each corner (m, 3)."""
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    p = [V[F[:, i]] for i in range(3)]
+    # edge opposite corner i: e_i = p[i+2] - p[i+1]
+    e = [p[2] - p[1], p[0] - p[2], p[1] - p[0]]
+    dbl = np.linalg.norm(np.cross(e[0], e[1]), axis=1)  # 2 |t|
+    if np.any(dbl <= 0):
+        raise MeshError(f"{int(np.sum(dbl <= 0))} faces have zero area: repair the mesh first "
+                        "(o3dheat.mesh.prepare drops them)")
+    # cot at corner i = <a, b> / |a x b|, a, b the edges leaving corner i = -e_{i+2}, e_{i+1}
+    cot = np.stack([-np.einsum("ij,ij->i", e[(i + 2) % 3], e[(i + 1) % 3]) / dbl for i in range(3)], axis=1)
+    sq = np.stack([np.einsum("ij,ij->i", e[i], e[i]) for i in range(3)], axis=1)
+    return dbl, cot, sq
+
+
+def stiffness_matrix(V, F):
+    """Cotangent stiffness matrix ``L`` (positive semi-definite, rows sum to 0).
+
+    Parameters
+    ----------
+    V : (n, 3) float64 ndarray
+        Vertex positions.
+    F : (m, 3) int ndarray
+        Triangles (0-based indices into ``V``); every face must have a positive area.
+
+    Returns
+    -------
+    L : (n, n) scipy.sparse.csc_matrix
+        ``L[i, j] = -(cot a_ij + cot b_ij)/2`` off the diagonal, ``L[i, i] = -sum_j L[i, j]``.
+        Dimensionless (invariant under scaling of ``V``).
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10))
+    >>> L = o3dheat.stiffness_matrix(V, F)
+    >>> bool(abs(L @ np.ones(len(V))).max() < 1e-12)
+    True
+    """
+    n = len(V)
+    F = np.asarray(F, dtype=np.int64)
+    _, cot, _ = _corner_geometry(V, F)
+    # corner i weights the edge (i+1, i+2)
+    I = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
+    J = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
+    w = 0.5 * np.concatenate([cot[:, 0], cot[:, 1], cot[:, 2]])
+    W = sp.coo_matrix((w, (I, J)), shape=(n, n)).tocsc()
+    W = W + W.T
+    L = sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W
+    return sp.csc_matrix(L)
+
+
+def voronoi_areas(V, F):
+    """Mixed Voronoi areas per vertex (Meyer, Desbrun, Schröder, Barr 2003).
+
+    Non-obtuse triangles give each corner its Voronoi region; an obtuse triangle gives half its
+    area to the obtuse corner and a quarter to each other one. The areas sum to the surface area.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 ndarray
+    F : (m, 3) int ndarray
+
+    Returns
+    -------
+    (n,) float64 ndarray
+        In squared units of ``V``.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10))
+    >>> a = o3dheat.fem.voronoi_areas(V, F)
+    >>> bool(np.isclose(a.sum(), o3dheat.mesh.face_areas(V, F).sum()))
+    True
+    """
+    n = len(V)
+    F = np.asarray(F, dtype=np.int64)
+    dbl, cot, sq = _corner_geometry(V, F)
+    area = 0.5 * dbl
+    # Voronoi part at corner i: (|e_{i+1}|^2 cot_{i+1} + |e_{i+2}|^2 cot_{i+2}) / 8
+    vor = np.stack([(sq[:, (i + 1) % 3] * cot[:, (i + 1) % 3] + sq[:, (i + 2) % 3] * cot[:, (i + 2) % 3]) / 8
+                    for i in range(3)], axis=1)
+    obtuse = cot < 0
+    any_obtuse = obtuse.any(axis=1)
+    vor[any_obtuse] = np.where(obtuse[any_obtuse], area[any_obtuse, None] / 2, area[any_obtuse, None] / 4)
+    return np.bincount(F.reshape(-1), weights=vor.reshape(-1), minlength=n)
+
+
+def mass_matrix(V, F, kind="consistent"):
+    """Mass matrix ``B`` of the linear FEM.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 ndarray
+    F : (m, 3) int ndarray
+    kind : {"consistent", "lumped", "voronoi"}
+        "consistent": ``B[i, j] = (|t_r| + |t_s|)/12``, ``B[i, i] = sum |t|/6`` (the paper's B);
+        "lumped": its row sums on the diagonal; "voronoi": mixed Voronoi areas on the diagonal.
+
+    Returns
+    -------
+    B : (n, n) scipy.sparse.csc_matrix
+        Symmetric positive definite on referenced vertices; ``1ᵀ B 1`` is the surface area in
+        squared units of ``V``.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_box())
+    >>> float(np.ones(len(V)) @ o3dheat.mass_matrix(V, F) @ np.ones(len(V)))
+    6.0
+    """
+    n = len(V)
+    F = np.asarray(F, dtype=np.int64)
+    if kind == "voronoi":
+        return sp.diags(voronoi_areas(V, F)).tocsc()
+    v0, v1, v2 = (np.asarray(V, dtype=np.float64)[F[:, i]] for i in range(3))
+    area = 0.5 * np.linalg.norm(np.cross(v1 - v0, v2 - v0), axis=1)
+    if kind == "lumped":
+        return sp.diags(np.bincount(F.reshape(-1), weights=np.repeat(area / 3, 3), minlength=n)).tocsc()
+    if kind != "consistent":
+        raise MeshError(f"unknown mass kind {kind!r}: use 'consistent', 'lumped' or 'voronoi'")
+    I = np.concatenate([F[:, 0], F[:, 1], F[:, 2]])
+    J = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
+    off = sp.coo_matrix((np.tile(area / 12, 3), (I, J)), shape=(n, n))
+    diag = np.bincount(F.reshape(-1), weights=np.repeat(area / 6, 3), minlength=n)
+    B = off + off.T + sp.diags(diag)
+    return sp.csc_matrix(B)

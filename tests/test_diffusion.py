@@ -1,0 +1,79 @@
+"""o3dheat.diffusion: eq. (8) and backward Euler converge to the spectral solution as dt -> 0."""
+
+import numpy as np
+import pytest
+
+import o3dheat
+from conftest import icosphere
+
+
+@pytest.fixture(scope="module")
+def small():
+    V, F = icosphere(2)
+    V = V * [1.2, 1.0, 0.8] + 0.03 * np.random.default_rng(0).standard_normal(V.shape)
+    return V, F
+
+
+@pytest.mark.parametrize("scheme", ["explicit", "implicit"])
+@pytest.mark.parametrize("mass, variant", [("consistent", "weighted"), ("identity", "linear")])
+def test_converges_to_spectral_solution(small, scheme, mass, variant):
+    V, F = small
+    spec = o3dheat.eigensolve((V, F), k=len(V), mass=mass)  # complete spectrum: exact reference
+    K = o3dheat.HeatKernel(spec, variant=variant)
+    f = np.random.default_rng(1).standard_normal((len(V), 2))  # two fields at once
+    T = 0.02 if mass == "consistent" else 1.0
+    exact = K.smooth(f, T)
+    errs = []
+    for steps in (40, 80, 160):
+        g = o3dheat.diffuse((V, F), f, dt=T / steps, steps=steps, scheme=scheme, mass=mass)
+        errs.append(np.abs(g - exact).max())
+    # first order in dt: halving dt halves the error
+    assert 1.7 < errs[0] / errs[1] < 2.3 and 1.7 < errs[1] / errs[2] < 2.3
+    assert errs[-1] < 0.02 * np.abs(exact).max()
+
+
+def test_history_and_single_field(small):
+    V, F = small
+    f = V[:, 2].copy()
+    h = o3dheat.diffuse((V, F), f, dt=1e-3, steps=5, scheme="implicit", return_history=True)
+    assert h.shape == (len(V), 6)
+    np.testing.assert_array_equal(h[:, 0], f)
+    last = o3dheat.diffuse((V, F), f, dt=1e-3, steps=5, scheme="implicit")
+    np.testing.assert_allclose(h[:, -1], last)
+
+
+def test_mass_is_conserved(small):
+    V, F = small
+    B = o3dheat.mass_matrix(V, F)
+    f = np.random.default_rng(3).random(len(V))
+    for scheme in ("explicit", "implicit"):
+        g = o3dheat.diffuse((V, F), f, dt=1e-4, steps=20, scheme=scheme)
+        assert np.ones(len(V)) @ B @ g == pytest.approx(np.ones(len(V)) @ B @ f, rel=1e-10)
+
+
+def test_explicit_unstable_step_refused(small):
+    V, F = small
+    with pytest.raises(o3dheat.MeshError, match="unstable"):
+        o3dheat.diffuse((V, F), V[:, 0], dt=10.0, steps=3)
+    # the implicit scheme takes any step
+    g = o3dheat.diffuse((V, F), V[:, 0], dt=10.0, steps=3, scheme="implicit")
+    assert np.all(np.isfinite(g))
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(dt=-1.0, steps=3), "dt"), (dict(dt=np.nan, steps=3), "dt"), (dict(dt=0.1, steps=-1), "steps"),
+    (dict(dt=0.1, steps=2, scheme="rk4"), "scheme"), (dict(dt=0.1, steps=2, mass="lumped"), "mass")])
+def test_bad_arguments(small, kwargs, match):
+    V, F = small
+    with pytest.raises(o3dheat.MeshError, match=match):
+        o3dheat.diffuse((V, F), V[:, 0], **kwargs)
+
+
+def test_bad_field(small):
+    V, F = small
+    with pytest.raises(o3dheat.MeshError, match="shape"):
+        o3dheat.diffuse((V, F), np.ones(3), dt=0.1, steps=1)
+    f = V[:, 0].copy()
+    f[0] = np.inf
+    with pytest.raises(o3dheat.MeshError, match="NaN"):
+        o3dheat.diffuse((V, F), f, dt=0.1, steps=1)

@@ -1,0 +1,107 @@
+"""o3dheat.fem: identities of the FEM operators and agreement with independent implementations
+(LaPy's FEM and libigl's cotangent, mass and Voronoi matrices)."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import o3dheat
+from o3dheat.fem import voronoi_areas
+from o3dheat.mesh import face_areas
+from conftest import grid, icosphere, irregular, torus
+
+MESHES = {"sphere": icosphere(2), "torus": torus(), "grid": grid(2, 1, 12, 6, jitter=0.3), "irregular": irregular()}
+
+
+@pytest.fixture(params=list(MESHES))
+def mesh(request):
+    return MESHES[request.param]
+
+
+def test_stiffness_identities(mesh):
+    V, F = mesh
+    L = o3dheat.stiffness_matrix(V, F)
+    assert abs(L - L.T).max() < 1e-12
+    np.testing.assert_allclose(L @ np.ones(len(V)), 0, atol=1e-11)
+    w = np.linalg.eigvalsh(L.toarray())
+    assert w.min() > -1e-10  # positive semi-definite
+    # L = Gᵀ diag(|t|) G with G the per-face gradient of the hat functions (independent formula)
+    v0, v1, v2 = (V[F[:, i]] for i in range(3))
+    nrm = np.cross(v1 - v0, v2 - v0)
+    dbl = np.linalg.norm(nrm, axis=1)
+    unit = nrm / dbl[:, None]
+    grads = [np.cross(unit, e) / dbl[:, None] for e in (v2 - v1, v0 - v2, v1 - v0)]
+    m, n = len(F), len(V)
+    rows = np.concatenate([np.arange(3 * m).reshape(m, 3)[:, d] for i in range(3) for d in range(3)])
+    cols = np.concatenate([F[:, i] for i in range(3) for d in range(3)])
+    vals = np.concatenate([grads[i][:, d] for i in range(3) for d in range(3)])
+    G = sp.csr_matrix((vals, (rows, cols)), shape=(3 * m, n))
+    A = sp.diags(np.repeat(dbl / 2, 3))
+    np.testing.assert_allclose((G.T @ A @ G).toarray(), L.toarray(), atol=1e-10)
+
+
+def test_stiffness_scale_invariant(mesh):
+    V, F = mesh
+    L1 = o3dheat.stiffness_matrix(V, F)
+    L2 = o3dheat.stiffness_matrix(7.5 * V, F)
+    assert abs(L1 - L2).max() < 1e-10
+
+
+def test_mass_identities(mesh):
+    V, F = mesh
+    area = face_areas(V, F).sum()
+    one = np.ones(len(V))
+    for kind in ("consistent", "lumped", "voronoi"):
+        B = o3dheat.mass_matrix(V, F, kind)
+        assert abs(B - B.T).max() < 1e-15
+        assert one @ B @ one == pytest.approx(area, rel=1e-12)
+        assert np.linalg.eigvalsh(B.toarray()).min() > 0
+    B = o3dheat.mass_matrix(V, F)
+    np.testing.assert_allclose(o3dheat.mass_matrix(V, F, "lumped").diagonal(), B @ one, rtol=1e-12)
+    # B(i, i) = sum |t| / 6 and B(i, j) = (|t_r| + |t_s|) / 12 on one hand-checked triangle pair
+    assert (2 ** 2 * o3dheat.mass_matrix(V, F)).sum() == pytest.approx((o3dheat.mass_matrix(2 * V, F)).sum())
+
+
+def test_mass_hand_example():
+    # two right triangles of area 1/2 sharing the edge 1-2
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])
+    F = np.array([[0, 1, 2], [1, 3, 2]])
+    B = o3dheat.mass_matrix(V, F).toarray()
+    assert B[1, 2] == pytest.approx((0.5 + 0.5) / 12)
+    assert B[0, 1] == pytest.approx(0.5 / 12)
+    assert B[1, 1] == pytest.approx((0.5 + 0.5) / 6)
+    assert B[0, 3] == 0
+    L = o3dheat.stiffness_matrix(V, F).toarray()
+    # the diagonal edge 1-2 is opposite two right angles: cot 90° = 0
+    assert L[1, 2] == pytest.approx(0, abs=1e-15)
+    assert L[0, 1] == pytest.approx(-0.5)  # cot 45° / 2 (boundary edge)
+
+
+def test_against_lapy(mesh):
+    lapy = pytest.importorskip("lapy")
+    V, F = mesh
+    s = lapy.Solver(lapy.TriaMesh(V, F.astype(np.int64)), lump=False)
+    assert abs(s.stiffness - o3dheat.stiffness_matrix(V, F)).max() < 1e-10
+    assert abs(s.mass - o3dheat.mass_matrix(V, F)).max() < 1e-14
+
+
+def test_against_libigl(mesh):
+    igl = pytest.importorskip("igl")
+    V, F = mesh
+    L = igl.cotmatrix(V, F.astype(np.int64))  # negative semi-definite, cot/2 weights
+    assert abs(-L - o3dheat.stiffness_matrix(V, F)).max() < 1e-10
+    M = igl.massmatrix(V, F.astype(np.int64), igl.MASSMATRIX_TYPE_VORONOI)
+    np.testing.assert_allclose(M.diagonal(), voronoi_areas(V, F), rtol=1e-10, atol=1e-14)
+    M = igl.massmatrix(V, F.astype(np.int64), igl.MASSMATRIX_TYPE_FULL)
+    assert abs(M - o3dheat.mass_matrix(V, F)).max() < 1e-14
+
+
+def test_unknown_mass_kind():
+    with pytest.raises(o3dheat.MeshError, match="unknown mass"):
+        o3dheat.mass_matrix(*icosphere(1), kind="diagonal")
+
+
+def test_zero_area_face_rejected_by_raw_operators():
+    V = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0.0]])
+    with pytest.raises(o3dheat.MeshError, match="zero area"):
+        o3dheat.stiffness_matrix(V, np.array([[0, 1, 2]]))

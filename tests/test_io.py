@@ -1,0 +1,76 @@
+"""o3dheat.io: lossless PLY round trips and atomic writes."""
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+import o3dheat
+from o3dheat.io import read_mesh, write_mesh
+
+
+@pytest.fixture
+def mesh():
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10, float_dtype=o3d.core.float64)
+    n = len(m.vertex.positions)
+    r = np.random.default_rng(0)
+    m.vertex["f"] = o3d.core.Tensor(r.standard_normal(n))
+    m.vertex["hks"] = o3d.core.Tensor(r.random((n, 4)))
+    m.vertex["label"] = o3d.core.Tensor(r.integers(0, 5, n).astype(np.int32))
+    m.vertex.colors = o3d.core.Tensor(r.random((n, 3)).astype(np.float32))
+    return m
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_round_trip_is_exact(tmp_path, mesh, binary):
+    p = tmp_path / "m.ply"
+    write_mesh(p, mesh, binary=binary)
+    back = read_mesh(p)
+    for key in mesh.vertex:
+        a, b = mesh.vertex[key].numpy(), back.vertex[key].numpy()
+        assert a.dtype == b.dtype and a.shape == b.shape, key
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(mesh.triangle.indices.numpy(), back.triangle.indices.numpy())
+
+
+def test_plain_readers_see_the_columns(tmp_path, mesh):
+    p = tmp_path / "m.ply"
+    write_mesh(p, mesh)
+    from plyfile import PlyData
+    names = PlyData.read(str(p))["vertex"].data.dtype.names
+    assert {"x", "red", "f", "hks_0", "hks_3", "label"} <= set(names)
+
+
+def test_write_is_atomic(tmp_path, mesh, monkeypatch):
+    p = tmp_path / "m.ply"
+    p.write_bytes(b"previous content")
+    import plyfile
+
+    def boom(self, stream):
+        stream.write(b"partial")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(plyfile.PlyData, "write", boom)
+    with pytest.raises(OSError):
+        write_mesh(p, mesh)
+    assert p.read_bytes() == b"previous content"
+    assert [x.name for x in tmp_path.iterdir()] == ["m.ply"]
+
+
+def test_bad_paths(tmp_path, mesh):
+    with pytest.raises(o3dheat.MeshError, match="no such file"):
+        read_mesh(tmp_path / "missing.ply")
+    with pytest.raises(o3dheat.MeshError, match="PLY"):
+        write_mesh(tmp_path / "m.obj", mesh)
+    with pytest.raises(o3dheat.MeshError, match="does not exist"):
+        write_mesh(tmp_path / "nope" / "m.ply", mesh)
+    bad = tmp_path / "bad.ply"
+    bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty double x\nend_header\n\x00")
+    with pytest.raises(o3dheat.MeshError, match="not a readable PLY"):
+        read_mesh(bad)
+
+
+def test_obj_through_open3d(tmp_path):
+    p = tmp_path / "box.obj"
+    o3d.io.write_triangle_mesh(str(p), o3d.geometry.TriangleMesh.create_box())
+    m = read_mesh(p)
+    assert len(m.triangle.indices) == 12

@@ -1,0 +1,285 @@
+"""o3dheat.kernel: the paper's properties (§2.1-§3.2) as identities."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+import o3dheat
+from o3dheat import HeatKernel
+from conftest import icosphere, irregular
+
+
+@pytest.fixture(scope="module")
+def spec():
+    return o3dheat.eigensolve(irregular(), k=40)
+
+
+@pytest.fixture(scope="module")
+def K(spec):
+    return HeatKernel(spec)
+
+
+@pytest.fixture(scope="module")
+def full():
+    """A complete spectrum (k = n) of a small irregular mesh: exact identities."""
+    V, F = icosphere(1)
+    V = V * [1.2, 1, 0.7] + 0.05 * np.random.default_rng(1).standard_normal(V.shape)
+    return o3dheat.eigensolve((V, F), k=len(V))
+
+
+def rng_field(n, seed=0, c=None):
+    r = np.random.default_rng(seed)
+    return r.standard_normal(n if c is None else (n, c))
+
+
+def bnorm(B, f):
+    return float(np.sqrt(f @ (B @ f)))
+
+
+@settings(max_examples=25, deadline=None)
+@given(a=st.floats(-1e3, 1e3), b=st.floats(-1e3, 1e3), t=st.floats(0, 1), seed=st.integers(0, 2**16))
+def test_linearity(K, a, b, t, seed):
+    n = K.n
+    f, g = rng_field(n, seed), rng_field(n, seed + 1)
+    lhs = K.smooth(a * f + b * g, t)
+    rhs = a * K.smooth(f, t) + b * K.smooth(g, t)
+    np.testing.assert_allclose(lhs, rhs, atol=1e-9 * (abs(a) + abs(b) + 1))
+
+
+@settings(max_examples=25, deadline=None)
+@given(t=st.floats(0, 2), seed=st.integers(0, 2**16))
+def test_b_self_adjoint(K, t, seed):
+    B = K.spectrum.mass
+    f, g = rng_field(K.n, seed), rng_field(K.n, seed + 7)
+    assert f @ (B @ K.smooth(g, t)) == pytest.approx(K.smooth(f, t) @ (B @ g), rel=1e-10, abs=1e-12)
+
+
+def test_phi0_is_b_projection(K):
+    X, B = K.spectrum.eigenvectors, K.spectrum.mass
+    f = rng_field(K.n)
+    P = X @ (X.T @ (B @ f))
+    np.testing.assert_allclose(K.smooth(f, 0.0), P, atol=1e-12)
+    np.testing.assert_allclose(K.smooth(P, 0.0), P, atol=1e-12)  # idempotent
+    g = X @ rng_field(K.spectrum.k, 3)  # in the span: reproduced exactly
+    np.testing.assert_allclose(K.smooth(g, 0.0), g, atol=1e-10)
+
+
+def test_large_t_gives_weighted_mean(K):
+    B = K.spectrum.mass
+    f = rng_field(K.n) + 3.0
+    mean = (np.ones(K.n) @ (B @ f)) / B.sum()
+    np.testing.assert_allclose(K.smooth(f, 1e4), mean, rtol=1e-10)
+
+
+@pytest.mark.parametrize("alpha", [1e-3, 1e3])
+def test_scale_covariance(spec, alpha):
+    """K_t(αM) = K_{t/α²}(M) on an irregular, non-symmetric mesh (§2.2)."""
+    V, F = irregular()
+    scaled = o3dheat.eigensolve((alpha * V, F), k=40)
+    np.testing.assert_allclose(scaled.eigenvalues[1:], spec.eigenvalues[1:] / alpha**2, rtol=1e-8)
+    K1, K2 = HeatKernel(spec), HeatKernel(scaled)
+    f = rng_field(len(V), 5)
+    for t in (0.01, 0.1, 1.0):
+        np.testing.assert_allclose(K2.smooth(f, t * alpha**2), K1.smooth(f, t), rtol=1e-7, atol=1e-9)
+        # the mass-weighted HKS is dimensionless: covariant as well
+        np.testing.assert_allclose(K2.hks(t * alpha**2), K1.hks(t), rtol=1e-7)
+    np.testing.assert_allclose(K2.scales(), K1.scales() * alpha**2, rtol=1e-8)
+
+
+@pytest.mark.parametrize("alpha", [1e-3, 1e3])
+def test_lambda2_normalised_kernel_is_scale_invariant(spec, alpha):
+    V, F = irregular()
+    K1 = HeatKernel(spec, normalize="lambda2")
+    K2 = HeatKernel(o3dheat.eigensolve((alpha * V, F), k=40), normalize="lambda2")
+    f = rng_field(len(V), 2)
+    for t in (0.1, 1.0, 10.0):
+        np.testing.assert_allclose(K2.smooth(f, t), K1.smooth(f, t), rtol=1e-7, atol=1e-9)
+    assert K1.rates[1] == pytest.approx(1.0)
+
+
+def test_paper_bounds(K):
+    """Error, energy and noise bounds of §3.1."""
+    X, B = K.spectrum.eigenvectors, K.spectrum.mass
+    f = X @ rng_field(K.spectrum.k, 4)  # f in the span: f = Σ <f, x_i>_B x_i
+    coef = np.abs(K.coefficients(f)).sum()
+    e = 0.1 * rng_field(K.n, 9)
+    lamX = np.linalg.norm(X, 2)
+    lamB = np.linalg.eigvalsh(B.toarray()).max()
+    for t in (0.0, 0.01, 0.1, 1.0):
+        Ff = K.smooth(f, t)
+        assert bnorm(B, f - Ff) <= 2 * coef + 1e-12
+        assert bnorm(B, Ff) <= coef + 1e-12
+        assert bnorm(B, Ff) <= bnorm(B, f) + 1e-12  # a contraction in the B-norm
+        noise = K.smooth(f + e, t) - Ff
+        assert bnorm(B, noise) <= K.n * bnorm(B, e)
+        assert bnorm(B, noise) <= bnorm(B, e) + 1e-12
+        assert np.linalg.norm(noise) <= lamX**2 * lamB * np.linalg.norm(e) + 1e-12
+        assert np.linalg.norm(Ff) <= lamX**2 * lamB * np.linalg.norm(f) + 1e-12
+
+
+def test_inverse_and_canonic_basis(K):
+    f = rng_field(K.n, 11)
+    X, B = K.spectrum.eigenvectors, K.spectrum.mass
+    P = X @ (X.T @ (B @ f))
+    for t in (0.0, 0.01, 0.05):
+        np.testing.assert_allclose(K.inverse(K.smooth(f, t), t), P, atol=1e-8)
+        np.testing.assert_allclose(K.smooth(K.inverse(f, t), t), P, atol=1e-8)
+    e = np.zeros(K.n)
+    e[17] = 1.0
+    np.testing.assert_allclose(K.canonic_basis(17, 0.02), K.smooth(e, 0.02), atol=1e-14)
+    many = K.canonic_basis([3, 17], 0.02)
+    np.testing.assert_allclose(many[:, 1], K.canonic_basis(17, 0.02))
+    # f_glob = Σ_{i∈A} f_i Φ_t(e_i): the linear combination of the canonic basis
+    A = np.array([3, 17, 40])
+    np.testing.assert_allclose(K.canonic_basis(A, 0.02) @ f[A], K.smooth(np.where(np.isin(np.arange(K.n), A), f, 0), 0.02),
+                               atol=1e-12)
+
+
+def test_exact_inverse_with_full_spectrum(full):
+    for variant, sp_ in (("weighted", full), ("linear", None)):
+        if sp_ is None:
+            V, F = icosphere(1)
+            sp_ = o3dheat.eigensolve((V, F), k=len(V), mass="identity")
+        K = HeatKernel(sp_, variant=variant)
+        f = rng_field(K.n, 3)
+        np.testing.assert_allclose(K.smooth(K.inverse(f, 0.1), 0.1), f, atol=1e-9)
+        np.testing.assert_allclose(K.inverse(K.smooth(f, 0.1), 0.1), f, atol=1e-9)
+    # the paper's linear-time formula when B := I: α = X D_t^{-1} Xᵀ f
+    X, lam = sp_.eigenvectors, sp_.eigenvalues
+    np.testing.assert_allclose(K.inverse(f, 0.1), X @ (np.exp(lam * 0.05) * (X.T @ f)), atol=1e-12)
+
+
+def test_inverse_voronoi_variant(spec):
+    K = HeatKernel(spec, variant="voronoi")
+    f = rng_field(K.n, 8)
+    X, B = spec.eigenvectors, spec.mass
+    P = X @ (X.T @ (B @ f))
+    np.testing.assert_allclose(K.smooth(K.inverse(f, 0.01), 0.01), P, atol=1e-8)
+
+
+def test_inverse_ill_conditioned(K):
+    with pytest.raises(o3dheat.SolverError, match="amplifies"):
+        K.inverse(rng_field(K.n), 1e6)
+
+
+def test_variants_match_dense_formulas(full):
+    X, lam, B, a = full.eigenvectors, full.eigenvalues, full.mass.toarray(), full.areas
+    t = 0.3
+    D = np.diag(np.exp(-lam * t / 2))
+    f = rng_field(full.n, 1)
+    expected = {"weighted": X @ D @ X.T @ B, "linear": X @ D @ X.T, "voronoi": X @ D @ X.T @ np.diag(a)}
+    for variant, Kt in expected.items():
+        K = HeatKernel(full, variant=variant)
+        np.testing.assert_allclose(K.smooth(f, t), Kt @ f, atol=1e-12)
+        np.testing.assert_allclose(K.hks(t), np.diag(Kt), atol=1e-12)  # "paper": diagonal of K_t
+        np.testing.assert_allclose(K.hks(t, form="density"), np.diag(X @ D @ X.T), atol=1e-12)
+    # the full weighted kernel is exactly the heat semigroup: K_s K_t = K_{s+t}, K_0 = I
+    Kw = HeatKernel(full)
+    np.testing.assert_allclose(Kw.smooth(Kw.smooth(f, 0.2), 0.1), Kw.smooth(f, 0.3), atol=1e-12)
+    np.testing.assert_allclose(Kw.smooth(f, 0.0), f, atol=1e-10)
+
+
+def test_sphere_hks_density_matches_analytic():
+    V, F = icosphere(4)
+    R = 2.0
+    K = HeatKernel(o3dheat.eigensolve((R * V, F), k=100))
+    t = np.array([0.5, 1.0, 2.0]) * R**2
+    l = np.arange(60)
+    truth = [(2 * l + 1) @ np.exp(-l * (l + 1) * tt / (2 * R**2)) / (4 * np.pi * R**2) for tt in t]
+    h = K.hks(t, form="density")
+    np.testing.assert_allclose(h.mean(0), truth, rtol=0.01)
+    np.testing.assert_allclose(h, np.broadcast_to(truth, h.shape), rtol=0.05)
+
+
+def test_transfer_functions(spec):
+    K = HeatKernel(spec)
+    f = rng_field(K.n, 2)
+    t = np.array([0.01, 0.1])
+    np.testing.assert_allclose(HeatKernel(spec, transfer=[0, 1]).smooth(f, t), K.smooth(f, t))
+    np.testing.assert_allclose(HeatKernel(spec, transfer=lambda x: 2 * x).smooth(f, t), K.smooth(f, 2 * t))
+    poly = HeatKernel(spec, transfer=[0, 1, 0.5])
+    lam = spec.eigenvalues
+    X, B = spec.eigenvectors, spec.mass
+    expected = X @ (np.exp(-(lam + 0.5 * lam**2) * 0.01 / 2) * (X.T @ (B @ f)))
+    np.testing.assert_allclose(poly.smooth(f, 0.01), expected, atol=1e-12)
+    with pytest.raises(o3dheat.MeshError, match="transfer"):
+        HeatKernel(spec, transfer=lambda x: np.log(x - 1))
+    with pytest.raises(o3dheat.MeshError, match="transfer"):
+        HeatKernel(spec, transfer=[[1, 2]])
+
+
+def test_batched_shapes(K):
+    f = rng_field(K.n, 1, c=3)
+    t = K.scales(4)
+    out = K.smooth(f, t)
+    assert out.shape == (K.n, 3, 4)
+    for j in range(3):
+        np.testing.assert_allclose(out[:, j, :], K.smooth(f[:, j], t), atol=1e-12)
+        for i in range(4):
+            np.testing.assert_allclose(out[:, j, i], K.smooth(f[:, j], t[i]), atol=1e-12)
+    assert K.smooth(f, 0.1).shape == (K.n, 3)
+    assert K.hks(0.1).shape == (K.n,) and K.hks(t).shape == (K.n, 4)
+
+
+def test_scales_and_error(K):
+    s = K.scales()
+    lk = K.spectrum.eigenvalues[-1]
+    np.testing.assert_allclose(s, np.arange(1, 11) / 10 / lk)
+    f = rng_field(K.n, 6)
+    X, B = K.spectrum.eigenvectors, K.spectrum.mass
+    e0 = np.abs(f - X @ (X.T @ (B @ f))).max() / np.abs(f).max()
+    assert K.error(f, 0.0) == pytest.approx(e0)
+    err = K.error(f, s)
+    assert err.shape == (10,) and np.all(np.diff(err) >= -1e-12)
+    assert K.error(np.zeros(K.n), s).max() == 0
+
+
+def test_truncation_bound_holds(full):
+    """‖Φ_t f − Φ_t^{(k)} f‖_B <= bound · ‖f‖_B, checked against the complete spectrum."""
+    import copy
+    Kf = HeatKernel(full)
+    f = rng_field(full.n, 4)
+    B = full.mass
+    for k in (5, 12, 25):
+        part = copy.copy(full)
+        part.eigenvalues, part.eigenvectors = full.eigenvalues[:k], full.eigenvectors[:, :k]
+        Kk = HeatKernel(part)
+        for t in (0.0, 0.05, 0.5):
+            diff = Kf.smooth(f, t) - Kk.smooth(f, t)
+            assert bnorm(B, diff) <= Kk.truncation_bound(f, t) * bnorm(B, f) * (1 + 1e-9) + 1e-14
+
+
+def test_suggest_k():
+    V, F = icosphere(4)
+    K = HeatKernel(o3dheat.eigensolve((V, F), k=60))
+    t, tol = 0.05, 1e-3
+    k = K.suggest_k(t, tol)
+    big = o3dheat.eigensolve((V, F), k=k)
+    factor = np.exp(-big.eigenvalues[-1] * t / 2)
+    assert tol / 5 < factor < 5 * tol
+
+
+def test_bad_input(K, spec):
+    n = K.n
+    with pytest.raises(o3dheat.MeshError, match="shape"):
+        K.smooth(np.ones(n + 1), 0.1)
+    f = np.ones(n)
+    f[5] = np.nan
+    with pytest.raises(o3dheat.MeshError, match="NaN"):
+        K.smooth(f, 0.1)
+    with pytest.raises(o3dheat.MeshError, match=">= 0"):
+        K.smooth(np.ones(n), -0.1)
+    with pytest.raises(o3dheat.MeshError, match="finite"):
+        K.hks([0.1, np.nan])
+    with pytest.raises(o3dheat.MeshError, match="variant"):
+        HeatKernel(spec, variant="cotan")
+    with pytest.raises(o3dheat.MeshError, match="normalize"):
+        HeatKernel(spec, normalize="area")
+    with pytest.raises(o3dheat.MeshError, match="Spectrum"):
+        HeatKernel(np.eye(3))
+    with pytest.raises(o3dheat.MeshError, match="out of range"):
+        K.canonic_basis(n, 0.1)
+    with pytest.raises(o3dheat.MeshError, match="form"):
+        K.hks(0.1, form="sun")
+    with pytest.raises(o3dheat.MeshError, match="count"):
+        K.scales(0)

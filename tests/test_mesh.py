@@ -1,0 +1,177 @@
+"""o3dheat.mesh: conversion, the validation report, repairs, and bad input."""
+
+import logging
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+import o3dheat
+from o3dheat.mesh import prepare
+from conftest import grid, icosphere, torus
+
+
+def as_tensor(V, F):
+    m = o3d.t.geometry.TriangleMesh()
+    m.vertex.positions = o3d.core.Tensor(V)
+    m.triangle.indices = o3d.core.Tensor(F)
+    return m
+
+
+def as_legacy(V, F):
+    return o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F))
+
+
+def test_inputs_agree(sphere3):
+    V, F = sphere3
+    for m in (as_tensor(V, F), as_legacy(V, F), (V, F), [V.tolist(), F.tolist()]):
+        V2, F2 = o3dheat.as_arrays(m)
+        assert V2.dtype == np.float64 and F2.dtype == np.int64
+        np.testing.assert_array_equal(V2, V)
+        np.testing.assert_array_equal(F2, F)
+
+
+def test_as_arrays_copies():
+    V, F = icosphere(1)
+    V2, _ = o3dheat.as_arrays((V, F))
+    V2[0] = 99
+    assert V[0, 0] != 99
+
+
+@pytest.mark.parametrize("mesh, chi, genus, loops", [
+    (icosphere(2), 2, 0, 0), (torus(), 0, 1, 0), (grid(), 1, 0, 1)])
+def test_report_topology(mesh, chi, genus, loops):
+    r = o3dheat.check_mesh(mesh)
+    assert (r.euler_characteristic, r.genus, r.boundary_loops, r.components) == (chi, genus, loops, 1)
+    assert r.ok and "status: ok" in str(r)
+
+
+def test_report_genus2_and_components():
+    # two tori side by side: 2 components, chi 0
+    V, F = torus()
+    V2 = np.concatenate([V, V + [5, 0, 0]])
+    F2 = np.concatenate([F, F + len(V)])
+    r = o3dheat.check_mesh((V2, F2))
+    assert r.components == 2 and r.euler_characteristic == 0 and r.genus == 2
+
+
+def test_report_counts_problems():
+    V, F = icosphere(1)
+    V = np.concatenate([V, V[:1], [[9.0, 9, 9]]])  # one duplicate vertex, one unreferenced
+    F = np.concatenate([F, F[:1], [[0, 0, 1]]])  # a duplicate and a degenerate face
+    r = o3dheat.check_mesh((V, F))
+    assert r.duplicate_faces == 1 and r.degenerate_faces == 1
+    assert r.unreferenced_vertices == 2 and r.duplicate_vertices == 1
+    assert not r.ok and "degenerate" in str(r)
+
+
+def test_non_manifold_edge_reported_and_usable():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1.0]])
+    F = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])  # edge 0-1 has three faces
+    r = o3dheat.check_mesh((V, F))
+    assert r.non_manifold_edges == 1 and r.genus is None
+    s = o3dheat.eigensolve((V, F), k=3)  # the FEM sums over all three triangles
+    np.testing.assert_allclose(s.eigenvectors.T @ s.mass @ s.eigenvectors, np.eye(3), atol=1e-10)
+
+
+def test_non_manifold_vertex():
+    # two triangles touching at one vertex only (a bow tie)
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0.0]])
+    F = np.array([[0, 1, 2], [0, 3, 4]])
+    assert o3dheat.check_mesh((V, F)).non_manifold_vertices == 1
+
+
+# ----------------------------------------------------------------------------------- bad input
+def test_empty_mesh():
+    with pytest.raises(o3dheat.MeshError, match="empty"):
+        o3dheat.as_arrays((np.zeros((0, 3)), np.zeros((0, 3), int)))
+    with pytest.raises(o3dheat.MeshError, match="empty|no vertex"):
+        o3dheat.eigensolve(o3d.t.geometry.TriangleMesh(), k=1)
+
+
+def test_no_faces():
+    with pytest.raises(o3dheat.MeshError, match="no faces"):
+        o3dheat.eigensolve((np.random.rand(10, 3), np.zeros((0, 3), int)), k=2)
+
+
+def test_point_cloud_rejected():
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.random.rand(5, 3)))
+    with pytest.raises(o3dheat.MeshError, match="point cloud"):
+        o3dheat.as_arrays(pcd)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_non_finite_coordinates(bad):
+    V, F = icosphere(1)
+    V = V.copy()
+    V[3, 1] = bad
+    with pytest.raises(o3dheat.MeshError, match="NaN or infinite"):
+        o3dheat.eigensolve((V, F), k=2)
+
+
+@pytest.mark.parametrize("index", [-1, 10**6])
+def test_face_index_out_of_range(index):
+    V, F = icosphere(1)
+    F = F.copy()
+    F[0, 0] = index
+    with pytest.raises(o3dheat.MeshError, match="out of range"):
+        o3dheat.eigensolve((V, F), k=2)
+
+
+def test_wrong_shapes():
+    with pytest.raises(o3dheat.MeshError, match=r"\(n, 3\)"):
+        o3dheat.as_arrays((np.zeros((4, 2)), np.array([[0, 1, 2]])))
+    with pytest.raises(o3dheat.MeshError, match="triangles"):
+        o3dheat.as_arrays((np.zeros((4, 3)), np.array([[0, 1, 2, 3]])))
+    with pytest.raises(o3dheat.MeshError, match="expected"):
+        o3dheat.as_arrays("mesh.ply")
+
+
+def test_degenerate_and_duplicate_faces_dropped(caplog):
+    V, F = icosphere(2)
+    F2 = np.concatenate([F, [[0, 0, 1]], F[:2]])
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        p = prepare((V, F2))
+    assert len(p.F) == len(F)
+    assert "degenerate" in caplog.text and "duplicate" in caplog.text
+    a = o3dheat.eigensolve((V, F), k=5).eigenvalues
+    b = o3dheat.eigensolve((V, F2), k=5).eigenvalues
+    np.testing.assert_allclose(a, b, atol=1e-10)
+
+
+def test_zero_area_faces_dropped(caplog):
+    V, F = grid(1, 1, 4, 4)
+    # a sliver with three collinear vertices on the boundary line y = 0
+    F2 = np.concatenate([F, [[0, 5, 10]]])
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        s = o3dheat.eigensolve((V, F2), k=4)
+    assert "zero-area" in caplog.text
+    assert np.all(np.isfinite(s.eigenvalues))
+
+
+def test_all_faces_degenerate():
+    V = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0.0]])
+    with pytest.raises(o3dheat.MeshError, match="degenerate"):
+        o3dheat.eigensolve((V, np.array([[0, 1, 2]])), k=1)
+
+
+def test_unreferenced_vertices_mapped_back(sphere3):
+    V, F = sphere3
+    V2 = np.concatenate([[[7.0, 7, 7]], V])  # vertex 0 is unreferenced
+    F2 = F + 1
+    s1 = o3dheat.eigensolve((V, F), k=6)
+    s2 = o3dheat.eigensolve((V2, F2), k=6)
+    assert s2.eigenvectors.shape == (len(V2), 6)
+    np.testing.assert_allclose(s2.eigenvalues, s1.eigenvalues, rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(s2.eigenvectors[0], 0)
+    np.testing.assert_allclose(s2.eigenvectors.T @ s2.mass @ s2.eigenvectors, np.eye(6), atol=1e-10)
+    K = o3dheat.HeatKernel(s2)
+    g = K.smooth(np.arange(len(V2), dtype=float), 0.1)
+    assert g[0] == 0 and np.all(np.isfinite(g))
+
+
+def test_duplicate_vertices_form_a_seam():
+    # split a sphere along a meridian seam: duplicate vertices, still a valid surface with boundary
+    V, F = icosphere(2)
+    r = o3dheat.check_mesh((np.concatenate([V, V[:1]]), np.concatenate([F, [[len(V), 1, 2]]])))
+    assert r.duplicate_vertices == 1

@@ -1,0 +1,185 @@
+"""o3dheat.spectrum: analytic spectra, B-orthonormality, backends, caching, reproducibility."""
+
+import logging
+import time
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+import o3dheat
+from o3dheat.linalg import available_backends
+from conftest import grid, icosphere, irregular, torus
+
+
+def sphere_truth(k, R=1.0):
+    lam = []
+    l = 0
+    while len(lam) < k:
+        lam += [l * (l + 1) / R**2] * (2 * l + 1)
+        l += 1
+    return np.array(lam[:k])
+
+
+@pytest.mark.parametrize("R", [1.0, 3.0])
+def test_unit_sphere_spectrum(sphere4, R):
+    V, F = sphere4
+    s = o3dheat.eigensolve((R * V, F), k=25, method="arpack")
+    truth = sphere_truth(25, R)
+    assert s.eigenvalues[0] == pytest.approx(0, abs=1e-10)
+    np.testing.assert_allclose(s.eigenvalues[1:], truth[1:], rtol=0.02)
+    # multiplicities 2l + 1: the gaps between clusters are the analytic ones
+    clusters = np.split(s.eigenvalues, [1, 4, 9, 16])
+    for l, c in enumerate(clusters):
+        assert len(c) == 2 * l + 1
+        assert np.ptp(c) < 0.02 * max(l * (l + 1), 1) / R**2
+
+
+def test_sphere_converges_under_refinement():
+    errs = []
+    for level in (2, 3, 4):
+        s = o3dheat.eigensolve(icosphere(level), k=16)
+        errs.append(np.abs(s.eigenvalues[1:] - sphere_truth(16)[1:]).max())
+    assert errs[0] > 2.5 * errs[1] > 2.5 * 2.5 * errs[2]  # about O(h²): x4 per level
+
+
+def test_flat_rectangle_neumann():
+    a, b = 2.0, 1.0
+    s = o3dheat.eigensolve(grid(a, b, 60, 30), k=12)
+    truth = np.sort([np.pi**2 * ((i / a) ** 2 + (j / b) ** 2) for i in range(8) for j in range(8)])[:12]
+    np.testing.assert_allclose(s.eigenvalues, truth, rtol=1e-2, atol=1e-9)
+
+
+def test_torus_first_eigenvalue_zero_and_orthonormal(torus_mesh):
+    s = o3dheat.eigensolve(torus_mesh, k=20)
+    assert s.eigenvalues[0] == pytest.approx(0, abs=1e-9)
+    assert np.all(np.diff(s.eigenvalues) >= 0)
+    # the constant eigenvector: L·1 = 0 and x_1 = 1 / sqrt(area)
+    area = s.mass.sum()
+    np.testing.assert_allclose(s.eigenvectors[:, 0], 1 / np.sqrt(area), rtol=1e-8)
+    X, B = s.eigenvectors, s.mass
+    np.testing.assert_allclose(X.T @ B @ X, np.eye(20), atol=1e-10)
+    assert s.residuals.max() < 1e-10
+    np.testing.assert_allclose(s.stiffness @ X, (B @ X) * s.eigenvalues, atol=1e-8 * s.eigenvalues.max())
+
+
+@pytest.mark.parametrize("mass", ["consistent", "lumped", "identity"])
+def test_mass_kinds(irregular_mesh, mass):
+    s = o3dheat.eigensolve(irregular_mesh, k=10, mass=mass, method="arpack")
+    d = o3dheat.eigensolve(irregular_mesh, k=10, mass=mass, method="dense")
+    np.testing.assert_allclose(s.eigenvalues, d.eigenvalues, rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(s.eigenvectors.T @ s.mass @ s.eigenvectors, np.eye(10), atol=1e-10)
+    assert s.mass_kind == mass
+
+
+def test_lumped_and_consistent_bracket_truth(sphere3):
+    # consistent mass over-estimates, lumped mass under-estimates the sphere's eigenvalues
+    c = o3dheat.eigensolve(sphere3, k=9, mass="consistent").eigenvalues[1:]
+    l = o3dheat.eigensolve(sphere3, k=9, mass="lumped").eigenvalues[1:]
+    t = sphere_truth(9)[1:]
+    assert np.all(c > t) and np.all(l < t)
+
+
+@pytest.mark.parametrize("backend", ["cholmod", "cholespy", "superlu"])
+def test_backends_agree(irregular_mesh, backend):
+    if backend not in available_backends():
+        pytest.skip(f"{backend} not installed")
+    ref = o3dheat.eigensolve(irregular_mesh, k=15, method="dense")
+    s = o3dheat.eigensolve(irregular_mesh, k=15, backend=backend, method="arpack")
+    assert s.backend == backend
+    np.testing.assert_allclose(s.eigenvalues, ref.eigenvalues, rtol=1e-9, atol=1e-10)
+    # eigenvectors equal up to the fixed sign (the irregular mesh has simple eigenvalues)
+    np.testing.assert_allclose(np.abs(s.eigenvectors.T @ ref.mass @ ref.eigenvectors).diagonal(), 1, atol=1e-7)
+    np.testing.assert_allclose(s.eigenvectors, ref.eigenvectors, atol=1e-6)
+
+
+def test_cholmod_is_installed_by_setup():
+    # the project's set-up installs scikit-sparse (unless asked for the pip-only fallback)
+    import os
+    if os.environ.get("O3DHEAT_PIP_ONLY"):
+        pytest.skip("pip-only set-up")
+    assert "cholmod" in available_backends()
+
+
+def test_fallback_warns(monkeypatch, irregular_mesh, caplog):
+    import o3dheat.linalg as la
+
+    def broken(A, mode):
+        raise ImportError("no CHOLMOD here")
+
+    monkeypatch.setattr(la, "_cholmod", broken)
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        s = o3dheat.eigensolve(irregular_mesh, k=5, method="arpack")
+    assert s.backend in ("cholespy", "superlu")
+    assert "cholmod" in caplog.text and "falling back" in caplog.text
+
+
+def test_inputs_agree(sphere3):
+    V, F = sphere3
+    t = o3d.t.geometry.TriangleMesh()
+    t.vertex.positions = o3d.core.Tensor(V)
+    t.triangle.indices = o3d.core.Tensor(F)
+    leg = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F))
+    a, b, c = (o3dheat.eigensolve(m, k=8, method="arpack") for m in ((V, F), t, leg))
+    np.testing.assert_array_equal(a.eigenvalues, b.eigenvalues)
+    np.testing.assert_array_equal(a.eigenvectors, c.eigenvectors)
+
+
+def test_reproducible_and_signs_fixed(irregular_mesh):
+    a = o3dheat.eigensolve(irregular_mesh, k=12, method="arpack")
+    b = o3dheat.eigensolve(irregular_mesh, k=12, method="arpack")
+    np.testing.assert_array_equal(a.eigenvectors, b.eigenvectors)
+    X = a.eigenvectors
+    assert np.all(X[np.argmax(np.abs(X), axis=0), np.arange(12)] > 0)
+
+
+def test_several_components():
+    V, F = icosphere(2)
+    V2 = np.concatenate([V, 0.5 * V + [4, 0, 0], V + [0, 5, 0]])
+    F2 = np.concatenate([F, F + len(V), F + 2 * len(V)])
+    s = o3dheat.eigensolve((V2, F2), k=6, method="arpack")
+    np.testing.assert_allclose(s.eigenvalues[:3], 0, atol=1e-9)
+    assert s.eigenvalues[3] > 1
+    np.testing.assert_allclose(s.eigenvectors.T @ s.mass @ s.eigenvectors, np.eye(6), atol=1e-10)
+
+
+def test_cache(tmp_path, irregular_mesh):
+    a = o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="arpack")
+    assert a.timings["cache"] is False and len(list(tmp_path.glob("spectrum-*.npz"))) == 1
+    b = o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="arpack")
+    assert b.timings["cache"] is True
+    np.testing.assert_array_equal(a.eigenvectors, b.eigenvectors)
+    c = o3dheat.eigensolve(irregular_mesh, k=11, cache=tmp_path, method="arpack")
+    assert c.timings["cache"] is False  # another k is another entry
+    # a corrupt cache file is ignored (and replaced), never fatal
+    for p in tmp_path.glob("spectrum-*.npz"):
+        p.write_bytes(b"garbage")
+    d = o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="arpack")
+    np.testing.assert_array_equal(a.eigenvalues, d.eigenvalues)
+
+
+def test_full_spectrum_dense():
+    V, F = icosphere(1)
+    s = o3dheat.eigensolve((V, F), k=len(V))
+    assert s.backend == "dense" and s.k == len(V)
+    np.testing.assert_allclose(s.eigenvectors.T @ s.mass @ s.eigenvectors, np.eye(len(V)), atol=1e-10)
+
+
+@pytest.mark.parametrize("k", [0, -3, 2.5, True, "10"])
+def test_bad_k(k):
+    with pytest.raises(o3dheat.MeshError, match="k must"):
+        o3dheat.eigensolve(icosphere(1), k=k)
+
+
+def test_k_larger_than_n():
+    with pytest.raises(o3dheat.MeshError, match="exceeds the number"):
+        o3dheat.eigensolve(icosphere(1), k=1000)
+
+
+def test_bad_sigma_and_mass():
+    with pytest.raises(o3dheat.MeshError, match="sigma"):
+        o3dheat.eigensolve(icosphere(1), k=3, sigma=0.5)
+    with pytest.raises(o3dheat.MeshError, match="unknown mass"):
+        o3dheat.eigensolve(icosphere(1), k=3, mass="voronoi")
+    with pytest.raises(o3dheat.SolverError, match="unknown backend"):
+        o3dheat.eigensolve(icosphere(3), k=3, backend="mkl", method="arpack")
