@@ -68,7 +68,7 @@ def test_large_t_gives_weighted_mean(K):
     B = K.spectrum.mass
     f = rng_field(K.n) + 3.0
     mean = (np.ones(K.n) @ (B @ f)) / B.sum()
-    np.testing.assert_allclose(K.smooth(f, 1e4), mean, rtol=1e-10)
+    np.testing.assert_allclose(K.smooth(f, 1e4), mean, rtol=1e-8)  # eigenvector accuracy of tol=1e-10
 
 
 @pytest.mark.parametrize("alpha", [1e-3, 1e3])
@@ -202,7 +202,7 @@ def test_transfer_functions(spec):
     X, B = spec.eigenvectors, spec.mass
     expected = X @ (np.exp(-(lam + 0.5 * lam**2) * 0.01 / 2) * (X.T @ (B @ f)))
     np.testing.assert_allclose(poly.smooth(f, 0.01), expected, atol=1e-12)
-    with pytest.raises(o3dheat.MeshError, match="transfer"):
+    with pytest.raises(o3dheat.MeshError, match="transfer"), np.errstate(invalid="ignore", divide="ignore"):
         HeatKernel(spec, transfer=lambda x: np.log(x - 1))
     with pytest.raises(o3dheat.MeshError, match="transfer"):
         HeatKernel(spec, transfer=[[1, 2]])

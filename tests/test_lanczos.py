@@ -1,0 +1,61 @@
+"""o3dheat.lanczos: the block shift-invert Lanczos against dense LAPACK."""
+
+import numpy as np
+import pytest
+
+import o3dheat
+from o3dheat import fem
+from o3dheat.lanczos import block_lanczos
+from o3dheat.linalg import factorize
+from conftest import icosphere, irregular, torus
+
+
+def operators(mesh):
+    V, F = mesh
+    L, B = fem.stiffness_matrix(V, F).tocsr(), fem.mass_matrix(V, F).tocsr()
+    sigma = -0.01 * 4 * np.pi / B.sum()
+    return L, B, sigma, factorize(L - sigma * B).solve
+
+
+@pytest.mark.parametrize("mesh, k", [(irregular(), 30), (torus(), 40), (icosphere(3), 36)])
+def test_matches_dense(mesh, k):
+    ref = o3dheat.eigensolve(mesh, k=k, method="dense")
+    s = o3dheat.eigensolve(mesh, k=k, method="lanczos")
+    # multiple eigenvalues (the torus' pairs, the sphere's 2l+1 copies) are all found
+    np.testing.assert_allclose(s.eigenvalues, ref.eigenvalues, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(s.eigenvectors.T @ s.mass @ s.eigenvectors, np.eye(k), atol=1e-10)
+    assert s.residuals.max() < 1e-8  # backward error of the default tol=1e-8
+    # same invariant subspaces: projections of the dense eigenvectors are kept
+    P = s.eigenvectors.T @ (s.mass @ ref.eigenvectors[:, : k - 4])
+    np.testing.assert_allclose(np.linalg.norm(P, axis=0), 1, atol=1e-7)
+
+
+def test_restarts_and_small_blocks():
+    L, B, sigma, solve = operators(irregular())
+    ref = o3dheat.eigensolve(irregular(), k=20, method="dense").eigenvalues
+    for block, basis in ((1, 30), (3, 32), (8, 40)):
+        lam, X, info = block_lanczos(L, B, solve, 20, sigma, block=block, max_basis=basis)
+        assert info["restarts"] > 0 and info["block"] == block
+        np.testing.assert_allclose(lam, ref, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(X.T @ B @ X, np.eye(20), atol=1e-10)
+
+
+def test_reproducible():
+    L, B, sigma, solve = operators(torus())
+    a = block_lanczos(L, B, solve, 10, sigma, seed=3)
+    b = block_lanczos(L, B, solve, 10, sigma, seed=3)
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+
+
+def test_too_small_for_lanczos():
+    L, B, sigma, solve = operators(icosphere(0))
+    with pytest.raises(o3dheat.SolverError, match="dense"):
+        block_lanczos(L, B, solve, 11, sigma)
+
+
+def test_auto_method_choice(irregular_mesh):
+    s = o3dheat.eigensolve(irregular_mesh, k=800)  # k > n / 2: dense
+    assert s.backend == "dense"
+    with pytest.raises(o3dheat.MeshError, match="unknown method"):
+        o3dheat.eigensolve(irregular_mesh, k=5, method="lobpcg")
