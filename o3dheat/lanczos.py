@@ -8,8 +8,9 @@ Design choices, each measured on 200k-vertex meshes (see ``scripts/bench_spectru
   and orthogonalized with BLAS-3 products instead of ARPACK's vector-by-vector BLAS-2 work;
 * semi-orthogonality (Simon 1984): each new block is orthogonalized against the last two blocks,
   then its coefficients against the whole basis are measured in one pass; only when they exceed
-  ``sqrt(eps)`` is the block fully re-orthogonalized (two passes of classical Gram-Schmidt).
-  About half of the full passes are saved;
+  ``sqrt(eps)`` are they subtracted (one more pass; small coefficients need no second one).
+  The products with B of the last two blocks are kept, so a step costs one sparse product with
+  B, one solve and one or two passes over the basis;
 * a thick restart on the best Ritz vectors bounds the basis at ``max(2k, k + 4b)`` vectors;
 * convergence per Ritz pair from the Lanczos residual ``ρ = ‖R_m z_last‖_B <= tol |ν|`` (free:
   no operator application), which needs no gap and so holds for multiple eigenvalues too;
@@ -33,23 +34,28 @@ log = logging.getLogger("o3dheat")
 _SEMI = np.sqrt(np.finfo(float).eps)
 
 
-def _b_orthonormalize_block(W, B, rng):
-    """B-orthonormalize the columns of W (n, b): returns Q, R with W = Q R, Qᵀ B Q = I.
+def _b_orthonormalize_block(W, B, rng, BW=None):
+    """B-orthonormalize the columns of W (n, b): returns Q, R, BQ with W = Q R, Qᵀ B Q = I.
 
-    Dependent columns are replaced by fresh random ones (their R rows are then 0)."""
+    ``BW`` (= B W), when given, saves the sparse product; dependent columns are replaced by fresh
+    random ones (their R rows are then 0)."""
     for _ in range(3):
-        G = W.T @ (B @ W)
+        if BW is None:
+            BW = B @ W
+        G = W.T @ BW
         G = (G + G.T) / 2
         try:
             R = np.linalg.cholesky(G).T  # upper triangular
             if np.min(np.diag(R)) > 1e-10 * np.max(np.diag(R)):
-                return sla.solve_triangular(R, W.T, trans="T").T, R
+                Rinv = sla.solve_triangular(R, np.eye(len(R)))
+                return W @ Rinv, R, BW @ Rinv
         except np.linalg.LinAlgError:
             pass
         w, U = np.linalg.eigh(G)
         keep = w > 1e-12 * max(w.max(), 1e-300)
         W = np.concatenate([W @ (U[:, keep] / np.sqrt(w[keep])),
                             rng.standard_normal((W.shape[0], int((~keep).sum())))], 1)
+        BW = None
     raise SolverError("could not build a B-orthonormal block (breakdown of the Lanczos basis)")
 
 
@@ -106,13 +112,14 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
     n = L.shape[0]
     b = int(max(1, min(block, n // 4 if n >= 8 else 1)))
     m_max = int(min(n - b, max_basis or max(2 * k, k + 4 * b)))
-    m_max = max(m_max, min(n - b, k + 2 * b))
+    m_max = max(m_max, min(n - b, k + max(2 * b, 8, k // 4)))
     if m_max < k:
         raise SolverError(f"the problem is too small for Lanczos (n={n}, k={k}): use the dense solver")
     rng = np.random.default_rng(seed)
     V = np.empty((n, m_max + b), order="F")
     T = np.zeros((m_max + b, m_max + b))
-    W, _ = _b_orthonormalize_block(rng.standard_normal((n, b)), B, rng)
+    W, _, BW = _b_orthonormalize_block(rng.standard_normal((n, b)), B, rng)
+    BVl = np.empty((n, 2 * b))  # B times the last two blocks: saves sparse products
     m = 0
     after_restart = False
     solves = restarts = biggest = steps = full = 0
@@ -121,26 +128,37 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
         m += b
         steps += 1
         biggest = max(biggest, m)
-        Y = solve(B @ W)
+        Y = solve(BW)
         solves += b
-        # local orthogonalization: the last two blocks (all of the kept part right after a restart)
-        lo = 0 if after_restart else max(0, m - 2 * b)
-        after_restart = False
-        Vl = V[:, lo:m]
-        Cl = Vl.T @ (B @ Y)
-        Y -= Vl @ Cl
-        # measure the loss of orthogonality against the whole basis (one pass)
         BY = B @ Y
+        # local orthogonalization: the last two blocks (all of the kept part right after a restart)
+        if after_restart:
+            lo, Vl, BVm = 0, V[:, :m], None
+        else:
+            lo = max(0, m - 2 * b)
+            Vl = V[:, lo:m]
+            BVl[:, :b] = BVl[:, b:]
+            BVl[:, b:] = BW
+            BVm = BVl[:, 2 * b - (m - lo):]
+        Cl = Vl.T @ BY
+        Y -= Vl @ Cl
+        BY = B @ Y if BVm is None else BY - BVm @ Cl
+        # measure the loss of orthogonality against the whole basis (one pass); restore it with
+        # one update when it exceeds sqrt(eps) (the coefficients are then small: no second pass)
         C = V[:, :m].T @ BY
         ynorm = np.sqrt(np.maximum(np.einsum("ij,ij->j", Y, BY), 1e-300))
-        if lo > 0 and np.max(np.abs(C[:lo]) / ynorm) > _SEMI:
+        if after_restart or np.max(np.abs(C[:lo]) / ynorm, initial=0.0) > _SEMI:
             full += 1
             Y -= V[:, :m] @ C
-            Y -= V[:, :m] @ (V[:, :m].T @ (B @ Y))
+            BY = B @ Y
         else:
             Y -= Vl @ C[lo:m]
+            BY -= BVm @ C[lo:m]
+        if after_restart:  # the new block is not a neighbour of the kept part: refill the cache
+            BVl[:, b:] = BW
+        after_restart = False
         T[lo:m, m - b:m] = Cl + C[lo:m]
-        W, R = _b_orthonormalize_block(Y, B, rng)
+        W, R, BW = _b_orthonormalize_block(Y, B, rng, BY)
         done_filling = m + b > m_max
         if m < k + b and not done_filling:
             continue
@@ -148,8 +166,7 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
         nu, Z = np.linalg.eigh(Ts)
         nu, Z = nu[::-1], Z[:, ::-1]  # largest ν first = smallest λ
         rho = np.linalg.norm(R @ Z[m - b:m, :], axis=0)
-        kk = min(k, m)
-        ok = (kk == k) and bool(np.all(rho[:k] <= tol * np.abs(nu[:k])))
+        ok = m >= k and bool(np.all(rho[:k] <= tol * np.abs(nu[:k])))
         if ok:
             break
         if done_filling:
@@ -165,10 +182,14 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
             after_restart = True
     X = V[:, :m] @ Z[:, :k]
     del V
-    X = np.ascontiguousarray(X)
-    LX, BX = L @ X, B @ X
-    A, M = X.T @ LX, X.T @ BX
+    # Rayleigh-Ritz of (L, B) in span(X), products in column chunks (no n x k temporaries)
+    A = np.empty((k, k))
+    M = np.empty((k, k))
+    for c in range(0, k, 32):
+        A[:, c:c + 32] = X.T @ (L @ X[:, c:c + 32])
+        M[:, c:c + 32] = X.T @ (B @ X[:, c:c + 32])
     lam, U = sla.eigh((A + A.T) / 2, (M + M.T) / 2)
+    X = X @ U
     info = {"solves": solves, "restarts": restarts, "basis": biggest, "block": b,
             "full_reorth": full, "steps": steps}
-    return lam, X @ U, info
+    return lam, X, info

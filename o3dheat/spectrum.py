@@ -116,17 +116,25 @@ def default_cache_dir():
 
 
 def _fix_signs(X):
+    """In place: the entry of largest magnitude of each column becomes positive."""
     idx = np.argmax(np.abs(X), axis=0)
     s = np.sign(X[idx, np.arange(X.shape[1])])
     s[s == 0] = 1.0
-    return X * s
+    X *= s
+    return X
 
 
-def _residuals(L, B, lam, X):
+def _residuals(L, B, lam, X, chunk=32):
+    """Normwise backward errors, computed in column chunks (no n x k temporaries)."""
     nL = abs(L).sum(axis=0).max()
     nB = abs(B).sum(axis=0).max()
-    R = L @ X - (B @ X) * lam
-    return np.linalg.norm(R, axis=0) / ((nL + np.abs(lam) * nB) * np.linalg.norm(X, axis=0) + 1e-300)
+    out = np.empty(X.shape[1])
+    for c in range(0, X.shape[1], chunk):
+        Xc = X[:, c:c + chunk]
+        R = L @ Xc - (B @ Xc) * lam[c:c + chunk]
+        out[c:c + chunk] = np.linalg.norm(R, axis=0) / (
+            (nL + np.abs(lam[c:c + chunk]) * nB) * np.linalg.norm(Xc, axis=0) + 1e-300)
+    return out
 
 
 def _b_orthonormalize(X, B):
