@@ -27,7 +27,7 @@ import scipy.linalg as sla
 
 from .errors import SolverError
 
-__all__ = ["block_lanczos"]
+__all__ = ["block_lanczos", "rayleigh_ritz"]
 
 log = logging.getLogger("o3dheat")
 
@@ -60,7 +60,7 @@ def _b_orthonormalize_block(W, B, rng, BW=None):
 
 
 def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_restarts=100,
-                  seed=0):
+                  seed=0, refine=True):
     """Smallest k eigenpairs of ``L x = λ B x`` by block shift-invert Lanczos.
 
     Parameters
@@ -84,6 +84,10 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
     max_restarts : int
     seed : int
         Seed of the random start block.
+    refine : bool
+        Finish with :func:`rayleigh_ritz` (exact Rayleigh quotients, B-orthonormal vectors).
+        False returns the Lanczos Ritz values and a view of the Ritz vectors inside the basis, so
+        that a caller can free the factorization before refining.
 
     Returns
     -------
@@ -180,16 +184,47 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
             T[:p, :p] = np.diag(nu[:p])
             m = p
             after_restart = True
-    X = V[:, :m] @ Z[:, :k]
-    del V
-    # Rayleigh-Ritz of (L, B) in span(X), products in column chunks (no n x k temporaries)
-    A = np.empty((k, k))
-    M = np.empty((k, k))
-    for c in range(0, k, 32):
-        A[:, c:c + 32] = X.T @ (L @ X[:, c:c + 32])
-        M[:, c:c + 32] = X.T @ (B @ X[:, c:c + 32])
-    lam, U = sla.eigh((A + A.T) / 2, (M + M.T) / 2)
-    X = X @ U
+    for r0 in range(0, n, 16384):  # Ritz vectors into the first k columns: no n x k temporary
+        V[r0:r0 + 16384, :k] = V[r0:r0 + 16384, :m] @ Z[:, :k]
+    del Vl, BVm
     info = {"solves": solves, "restarts": restarts, "basis": biggest, "block": b,
             "full_reorth": full, "steps": steps}
+    if not refine:
+        return sigma + 1.0 / nu[:k], V[:, :k], info
+    lam, X = rayleigh_ritz(L, B, V[:, :k])
     return lam, X, info
+
+
+def rayleigh_ritz(L, B, X, chunk=32):
+    """Rayleigh-Ritz of the pencil (L, B) in the span of the columns of X.
+
+    Parameters
+    ----------
+    L, B : (n, n) scipy.sparse matrices
+    X : (n, k) ndarray
+        A basis of the subspace (need not be B-orthonormal).
+    chunk : int
+        Columns per sparse product (bounds the temporaries to n x chunk).
+
+    Returns
+    -------
+    lam : (k,) ndarray
+        Ascending Ritz values (Rayleigh quotients).
+    Y : (n, k) ndarray
+        B-orthonormal Ritz vectors (a new array).
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.sparse as sp
+    >>> L = sp.diags([1.0, 2.0, 3.0]); B = sp.identity(3)
+    >>> rayleigh_ritz(L, B, np.eye(3)[:, :2])[0].tolist()
+    [1.0, 2.0]
+    """
+    k = X.shape[1]
+    A = np.empty((k, k))
+    M = np.empty((k, k))
+    for c in range(0, k, chunk):
+        A[:, c:c + chunk] = X.T @ (L @ X[:, c:c + chunk])
+        M[:, c:c + chunk] = X.T @ (B @ X[:, c:c + chunk])
+    lam, U = sla.eigh((A + A.T) / 2, (M + M.T) / 2)
+    return lam, X @ U

@@ -28,7 +28,7 @@ import scipy.sparse.linalg as spla
 
 from . import fem
 from .errors import MeshError, SolverError
-from .lanczos import block_lanczos
+from .lanczos import block_lanczos, rayleigh_ritz
 from .linalg import factorize
 from .mesh import prepare
 
@@ -38,6 +38,7 @@ log = logging.getLogger("o3dheat")
 
 MASS_KINDS = ("consistent", "lumped", "identity")
 DENSE_MAX_N = 1200
+DENSE_LIMIT_N = 12_000  # above this a dense solve needs several GiB: never chosen automatically
 # Measured (scripts/bench_spectrum.py): the block Lanczos wins from about 100k vertices; below,
 # ARPACK's single-vector Lanczos on the same CHOLMOD factor needs fewer solves and less work.
 LANCZOS_MIN_N = 100_000
@@ -182,9 +183,14 @@ def _solve_lanczos(L, B, k, sigma, backend, seed, tol, block):
     fac = factorize(L - sigma * B, backend=backend)
     t1 = time.perf_counter()
     L, B = sp.csr_matrix(L), sp.csr_matrix(B)  # faster products with blocks of vectors
-    lam, X, info = block_lanczos(L, B, fac.solve, k, sigma, block=block, tol=max(tol, 1e-14), seed=seed)
+    used = fac.backend
+    _, Xv, info = block_lanczos(L, B, fac.solve, k, sigma, block=block, tol=max(tol, 1e-14), seed=seed,
+                                refine=False)
+    del fac  # free the factorization before the Rayleigh-Ritz (peak memory)
+    lam, X = rayleigh_ritz(L, B, Xv)
+    del Xv  # the Lanczos basis
     log.info("block Lanczos: %s", info)
-    return lam, X, fac.backend, t1 - t0, time.perf_counter() - t1
+    return lam, X, used, t1 - t0, time.perf_counter() - t1
 
 
 def _solve_dense(L, B, k):
@@ -279,6 +285,13 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
             method = "lanczos" if r >= LANCZOS_MIN_N else "arpack"
         if not use_dense and k >= r - 1:
             use_dense = True  # ARPACK needs k < n - 1
+        if use_dense and r > DENSE_LIMIT_N:
+            if method == "dense" or k >= r - 1:
+                raise MeshError(f"a dense eigensolve of {r} vertices would need about "
+                                f"{2 * 8 * r * r / 2**30:.0f} GiB: ask for k < {r - 1} eigenpairs with "
+                                "method='auto' (iterative), or use a smaller mesh")
+            use_dense = False
+            method = "lanczos" if r >= LANCZOS_MIN_N else "arpack"
         s = float("nan") if use_dense else (_shift(B) if sigma is None else float(sigma))
         rng = np.random.default_rng(seed)
         if use_dense:

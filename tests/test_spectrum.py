@@ -183,3 +183,16 @@ def test_bad_sigma_and_mass():
         o3dheat.eigensolve(icosphere(1), k=3, mass="voronoi")
     with pytest.raises(o3dheat.SolverError, match="unknown backend"):
         o3dheat.eigensolve(icosphere(3), k=3, backend="mkl", method="arpack")
+
+
+def test_dense_refused_when_too_large(monkeypatch):
+    import o3dheat.spectrum as S
+
+    V, F = icosphere(2)  # 162 vertices
+    ref = o3dheat.eigensolve((V, F), k=100).eigenvalues  # k > n/2: dense
+    monkeypatch.setattr(S, "DENSE_LIMIT_N", 100)
+    with pytest.raises(o3dheat.MeshError, match="GiB"):
+        o3dheat.eigensolve((V, F), k=10, method="dense")
+    s = o3dheat.eigensolve((V, F), k=100)  # too large for dense here: iterative instead
+    assert s.backend != "dense"
+    np.testing.assert_allclose(s.eigenvalues, ref, rtol=1e-9, atol=1e-9)
