@@ -224,7 +224,8 @@ def rayleigh_ritz(L, B, X, chunk=32):
     A = np.empty((k, k))
     M = np.empty((k, k))
     for c in range(0, k, chunk):
-        A[:, c:c + chunk] = X.T @ (L @ X[:, c:c + chunk])
-        M[:, c:c + chunk] = X.T @ (B @ X[:, c:c + chunk])
+        Xc = np.ascontiguousarray(X[:, c:c + chunk])  # sparse products are 2-3x faster on C order
+        A[:, c:c + chunk] = X.T @ (L @ Xc)
+        M[:, c:c + chunk] = X.T @ (B @ Xc)
     lam, U = sla.eigh((A + A.T) / 2, (M + M.T) / 2)
     return lam, X @ U

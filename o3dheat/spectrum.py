@@ -131,7 +131,7 @@ def _residuals(L, B, lam, X, chunk=32):
     nB = abs(B).sum(axis=0).max()
     out = np.empty(X.shape[1])
     for c in range(0, X.shape[1], chunk):
-        Xc = X[:, c:c + chunk]
+        Xc = np.ascontiguousarray(X[:, c:c + chunk])
         R = L @ Xc - (B @ Xc) * lam[c:c + chunk]
         out[c:c + chunk] = np.linalg.norm(R, axis=0) / (
             (nL + np.abs(lam[c:c + chunk]) * nB) * np.linalg.norm(Xc, axis=0) + 1e-300)
