@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshError
+from .mesh import face_areas
 
 __all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas"]
 
@@ -145,8 +146,7 @@ def mass_matrix(V, F, kind="consistent"):
     F = np.asarray(F, dtype=np.int64)
     if kind == "voronoi":
         return sp.diags(voronoi_areas(V, F)).tocsc()
-    v0, v1, v2 = (np.asarray(V, dtype=np.float64)[F[:, i]] for i in range(3))
-    area = 0.5 * np.linalg.norm(np.cross(v1 - v0, v2 - v0), axis=1)
+    area = face_areas(np.asarray(V, dtype=np.float64), F)
     if kind == "lumped":
         return sp.diags(np.bincount(F.reshape(-1), weights=np.repeat(area / 3, 3), minlength=n)).tocsc()
     if kind != "consistent":

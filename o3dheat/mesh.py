@@ -54,6 +54,21 @@ def _from_open3d(mesh):
     return None
 
 
+def _pair(mesh):
+    """(V, F) as given: from an Open3D mesh or a 2-sequence, not yet checked."""
+    pair = _from_open3d(mesh)
+    if pair is None:
+        if not isinstance(mesh, (tuple, list)) or len(mesh) != 2:
+            raise MeshError(f"expected an Open3D TriangleMesh or a (V, F) tuple, got {type(mesh).__name__}")
+        pair = mesh
+    return pair
+
+
+def _degenerate(F):
+    """Faces that repeat a vertex index."""
+    return (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+
+
 def as_arrays(mesh):
     """Return the vertices and faces of a mesh as checked numpy arrays.
 
@@ -81,11 +96,7 @@ def as_arrays(mesh):
     >>> V.shape[1], F.shape[1], V.dtype.name, F.dtype.name
     (3, 3, 'float64', 'int64')
     """
-    pair = _from_open3d(mesh)
-    if pair is None:
-        if not isinstance(mesh, (tuple, list)) or len(mesh) != 2:
-            raise MeshError(f"expected an Open3D TriangleMesh or a (V, F) tuple, got {type(mesh).__name__}")
-        pair = mesh
+    pair = _pair(mesh)
     V = np.array(pair[0], dtype=np.float64, copy=True)
     F_in = np.asarray(pair[1])
     if V.size == 0:
@@ -254,11 +265,7 @@ def check_mesh(mesh):
     >>> r.euler_characteristic, r.genus, r.ok
     (0, 1.0, True)
     """
-    pair = _from_open3d(mesh)
-    if pair is None:
-        if not isinstance(mesh, (tuple, list)) or len(mesh) != 2:
-            raise MeshError(f"expected an Open3D TriangleMesh or a (V, F) tuple, got {type(mesh).__name__}")
-        pair = mesh
+    pair = _pair(mesh)
     V = np.asarray(pair[0], dtype=np.float64).reshape(-1, 3)
     F = np.asarray(pair[1]).reshape(-1, 3).astype(np.int64)
     n, m = len(V), len(F)
@@ -274,7 +281,7 @@ def check_mesh(mesh):
         m = len(F)
     if nonfinite:
         problems.append(f"{nonfinite} non-finite vertices")
-    degenerate = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    degenerate = _degenerate(F)
     Fs = np.sort(F[~degenerate], axis=1)
     dup_faces = len(Fs) - len(np.unique(Fs, axis=0)) if len(Fs) else 0
     finite = np.all(np.isfinite(V), axis=1)
@@ -376,7 +383,7 @@ def prepare(mesh):
     """
     V, F = as_arrays(mesh)
     n = len(V)
-    degenerate = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    degenerate = _degenerate(F)
     if degenerate.any():
         log.warning("dropping %d degenerate faces (a vertex index repeated)", int(degenerate.sum()))
         F = F[~degenerate]

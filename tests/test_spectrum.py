@@ -196,3 +196,19 @@ def test_dense_refused_when_too_large(monkeypatch):
     s = o3dheat.eigensolve((V, F), k=100)  # too large for dense here: iterative instead
     assert s.backend != "dense"
     np.testing.assert_allclose(s.eigenvalues, ref, rtol=1e-9, atol=1e-9)
+
+
+def test_default_cache_dir(monkeypatch, tmp_path, irregular_mesh):
+    monkeypatch.setenv("O3DHEAT_CACHE", str(tmp_path / "c"))
+    a = o3dheat.eigensolve(irregular_mesh, k=6, cache=True)
+    assert len(list((tmp_path / "c").glob("spectrum-*.npz"))) == 1
+    assert o3dheat.eigensolve(irregular_mesh, k=6, cache=True).timings["cache"] is True
+    assert a.timings["cache"] is False
+
+
+def test_unwritable_cache_is_not_fatal(tmp_path, irregular_mesh, caplog):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        s = o3dheat.eigensolve(irregular_mesh, k=4, cache=blocker / "sub")
+    assert s.k == 4 and "could not write the spectrum cache" in caplog.text
