@@ -39,9 +39,9 @@ log = logging.getLogger("o3dheat")
 MASS_KINDS = ("consistent", "lumped", "identity")
 DENSE_MAX_N = 1200
 DENSE_LIMIT_N = 12_000  # above this a dense solve needs several GiB: never chosen automatically
-# Measured (scripts/bench_spectrum.py): the block Lanczos wins from about 100k vertices; below,
+# Measured (scripts/bench_spectrum.py): the block Lanczos wins from about 30k vertices; below,
 # ARPACK's single-vector Lanczos on the same CHOLMOD factor needs fewer solves and less work.
-LANCZOS_MIN_N = 100_000
+LANCZOS_MIN_N = 30_000
 _CACHE_VERSION = "1"
 
 
@@ -226,7 +226,7 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         "lanczos": block shift-invert Lanczos (:func:`o3dheat.lanczos.block_lanczos`, the fast
         default); "arpack": SciPy's ``eigsh`` in shift-invert mode on the same factor; "dense":
         LAPACK on dense matrices. "auto" is dense for ``n <= 1200`` or ``k > n / 2``, "arpack"
-        up to 100k vertices and "lanczos" above (where it is measured faster).
+        below 30k vertices and "lanczos" from there on (where it is measured faster).
     tol : float
         Relative residual asked of "lanczos" (see :func:`o3dheat.lanczos.block_lanczos`): the
         default 1e-8 gives eigenvectors to about 1e-8 over the relative gap and eigenvalues equal
