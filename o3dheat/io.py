@@ -36,6 +36,16 @@ def _attributes(mesh):
     return attrs, mesh.triangle.indices.numpy()
 
 
+def _file_mode(path):
+    """The mode a new file gets from open() (0666 less the umask), or the existing file's."""
+    try:
+        return os.stat(path).st_mode & 0o777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
+
+
 def write_mesh(path, mesh, binary=True):
     """Write a mesh and all its vertex attributes to a PLY file, atomically.
 
@@ -114,6 +124,7 @@ def write_mesh(path, mesh, binary=True):
     try:
         with os.fdopen(fd, "wb") as fh:
             ply.write(fh)
+        os.chmod(tmp, _file_mode(path))  # mkstemp makes 0600 files: use what open() would
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -74,3 +74,12 @@ def test_obj_through_open3d(tmp_path):
     o3d.io.write_triangle_mesh(str(p), o3d.geometry.TriangleMesh.create_box())
     m = read_mesh(p)
     assert len(m.triangle.indices) == 12
+
+
+def test_written_file_has_ordinary_permissions(tmp_path, mesh):
+    import os
+    p = tmp_path / "m.ply"
+    write_mesh(p, mesh)
+    mask = os.umask(0)
+    os.umask(mask)
+    assert (p.stat().st_mode & 0o777) == (0o666 & ~mask)
