@@ -21,7 +21,6 @@ from __future__ import annotations
 from functools import cached_property
 
 import numpy as np
-import scipy.sparse as sp
 
 from .errors import MeshError, SolverError
 from .spectrum import Spectrum

@@ -20,16 +20,12 @@ Design choices, each measured on 200k-vertex meshes (see ``scripts/bench_spectru
 
 from __future__ import annotations
 
-import logging
-
 import numpy as np
 import scipy.linalg as sla
 
 from .errors import SolverError
 
 __all__ = ["block_lanczos", "rayleigh_ritz"]
-
-log = logging.getLogger("o3dheat")
 
 _SEMI = np.sqrt(np.finfo(float).eps)
 

@@ -221,7 +221,6 @@ def _non_manifold_vertices(F, n):
         return 0
     # corner c = (face, slot); two corners at the same vertex are adjacent when their faces share
     # the edge (vertex, other) -- join corners through the "half-edge key" (vertex, other vertex).
-    face = np.repeat(np.arange(m), 3)
     vert = F.reshape(-1)
     nxt = F[:, [1, 2, 0]].reshape(-1)
     prv = F[:, [2, 0, 1]].reshape(-1)
@@ -235,7 +234,6 @@ def _non_manifold_vertices(F, n):
     _, lab = connected_components(g, directed=False)
     fans = np.unique(np.stack([vert, lab], axis=1), axis=0)
     per_vertex = np.bincount(fans[:, 0], minlength=n)
-    del face
     return int(np.sum(per_vertex > 1))
 
 

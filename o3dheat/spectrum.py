@@ -149,7 +149,7 @@ def _b_orthonormalize(X, B):
     return sla.solve_triangular(C, X.T, lower=True).T
 
 
-def _shift(B, n_components_hint=1):
+def _shift(B):
     # Weyl's law: λ_j ≈ 4π j / area; shift a hundredth of the first gap below 0.
     area = float(B.sum())
     return -0.01 * 4 * np.pi / area

@@ -1,7 +1,6 @@
 """o3dheat.spectrum: analytic spectra, B-orthonormality, backends, caching, reproducibility."""
 
 import logging
-import time
 
 import numpy as np
 import open3d as o3d
@@ -9,7 +8,7 @@ import pytest
 
 import o3dheat
 from o3dheat.linalg import available_backends
-from conftest import grid, icosphere, irregular, torus
+from conftest import grid, icosphere
 
 
 def sphere_truth(k, R=1.0):
