@@ -9,8 +9,8 @@ Design choices, each measured on 200k-vertex meshes (see ``scripts/bench_spectru
 * semi-orthogonality (Simon 1984): each new block is orthogonalized against the last two blocks,
   then its coefficients against the whole basis are measured in one pass; only when they exceed
   ``sqrt(eps)`` are they subtracted (one more pass; small coefficients need no second one).
-  The products with B of the last two blocks are kept, so a step costs one sparse product with
-  B, one solve and one or two passes over the basis;
+  The products with B of the last two blocks are kept, so a step costs one solve, one sparse
+  product with B and one pass over the basis (two of each when re-orthogonalizing);
 * a thick restart on the best Ritz vectors bounds the basis at ``max(2k, k + 4b)`` vectors;
 * convergence per Ritz pair from the Lanczos residual ``ρ = ‖R_m z_last‖_B <= tol |ν|`` (free:
   no operator application), which needs no gap and so holds for multiple eigenvalues too;
