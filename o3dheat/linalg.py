@@ -26,6 +26,7 @@ __all__ = ["factorize", "Factor", "available_backends", "BACKENDS"]
 log = logging.getLogger("o3dheat")
 
 BACKENDS = ("cholmod", "cholespy", "superlu")
+_WARNED = set()
 ORDERING = "default"  # CHOLMOD tries AMD, then METIS when the fill is high: best or near-best on meshes
 
 
@@ -157,7 +158,7 @@ def factorize(A, backend="auto", mode="simplicial"):
     --------
     >>> import numpy as np, scipy.sparse as sp, o3dheat.linalg as la
     >>> A = sp.diags([2.0, 3.0, 4.0]).tocsc()
-    >>> la.factorize(A).solve(np.array([2.0, 3.0, 4.0])).tolist()
+    >>> la.factorize(A).solve(np.array([2.0, 3.0, 4.0])).round(12).tolist()
     [1.0, 1.0, 1.0]
     """
     if backend == "auto":
@@ -179,8 +180,11 @@ def factorize(A, backend="auto", mode="simplicial"):
         except Exception as e:  # ImportError or a failed factorization
             errors.append(f"{name}: {type(e).__name__}: {e}")
             if backend == "auto" and name != order[-1]:
-                log.warning("factorization backend %s unavailable or failed (%s); falling back", name,
-                            f"{type(e).__name__}: {e}")
+                reason = f"{type(e).__name__}: {e}"
+                # each distinct reason is a warning once per process, then logged at INFO
+                level = logging.INFO if (name, reason) in _WARNED else logging.WARNING
+                _WARNED.add((name, reason))
+                log.log(level, "factorization backend %s unavailable or failed (%s); falling back", name, reason)
             continue
         return Factor(name, solve, A.shape)
     raise SolverError("could not factorize the matrix: " + "; ".join(errors))
