@@ -5,11 +5,16 @@
 #
 #   bash scripts/setup.sh            # normal use (root installs missing system packages)
 #   O3DHEAT_PIP_ONLY=1 bash scripts/setup.sh   # no apt, no scikit-sparse: cholespy/SuperLU only
+#                                              # (remembered by later runs; O3DHEAT_PIP_ONLY=0 undoes it)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
 venv="$root/.venv"
 log() { printf '[setup] %s\n' "$*" >&2; }
+if [ -z "${O3DHEAT_PIP_ONLY+set}" ] && grep -qs piponly "$venv/.o3dheat-setup"; then
+  export O3DHEAT_PIP_ONLY=1  # an earlier pip-only set-up stays pip-only
+fi
+[ "${O3DHEAT_PIP_ONLY:-}" = 0 ] && unset O3DHEAT_PIP_ONLY
 
 # --- system packages ---------------------------------------------------------------------------
 # libsuitesparse-dev: CHOLMOD headers for scikit-sparse; libusb-1.0-0 and libgomp1: Open3D does not
