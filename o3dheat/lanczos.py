@@ -55,6 +55,12 @@ def _b_orthonormalize_block(W, B, rng, BW=None):
     raise SolverError("could not build a B-orthonormal block (breakdown of the Lanczos basis)")
 
 
+def _rotate(V, m, Z, p, rows=16384):
+    """In place, ``V[:, :p] = V[:, :m] @ Z[:, :p]``, by row chunks: no n x p temporary."""
+    for r0 in range(0, V.shape[0], rows):
+        V[r0:r0 + rows, :p] = V[r0:r0 + rows, :m] @ Z[:, :p]
+
+
 def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_restarts=100,
                   seed=0, refine=True):
     """Smallest k eigenpairs of ``L x = λ B x`` by block shift-invert Lanczos.
@@ -174,14 +180,12 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
                 raise SolverError(f"block Lanczos did not converge after {restarts} restarts")
             restarts += 1
             p = min(m - b, max(k + (m_max - k) // 2, k + b), m_max - b)
-            for r0 in range(0, n, 16384):  # in row chunks: no n x p temporary
-                V[r0:r0 + 16384, :p] = V[r0:r0 + 16384, :m] @ Z[:, :p]
+            _rotate(V, m, Z, p)
             T[:] = 0
             T[:p, :p] = np.diag(nu[:p])
             m = p
             after_restart = True
-    for r0 in range(0, n, 16384):  # Ritz vectors into the first k columns: no n x k temporary
-        V[r0:r0 + 16384, :k] = V[r0:r0 + 16384, :m] @ Z[:, :k]
+    _rotate(V, m, Z, k)  # the Ritz vectors, in the first k columns
     del Vl, BVm
     info = {"solves": solves, "restarts": restarts, "basis": biggest, "block": b,
             "full_reorth": full, "steps": steps}

@@ -163,7 +163,22 @@ def _cache_key(V, F, k, mass, method):
     return h.hexdigest()[:32]
 
 
-def _solve_arpack(L, B, k, sigma, backend, rng, tol):
+def _choose_method(method, r, k):
+    """"dense", "arpack" or "lanczos" for r vertices and k eigenpairs (see eigensolve)."""
+    iterative = "lanczos" if r >= LANCZOS_MIN_N else "arpack"
+    if method == "auto":
+        method = "dense" if (r <= DENSE_MAX_N or k > r // 2) and r <= DENSE_LIMIT_N else iterative
+    if k >= r - 1:
+        method = "dense"  # ARPACK and the block Lanczos need k < n - 1
+    if method == "dense" and r > DENSE_LIMIT_N:
+        raise MeshError(f"a dense eigensolve of {r} vertices would need about "
+                        f"{2 * 8 * r * r / 2**30:.0f} GiB: ask for k < {r - 1} eigenpairs with "
+                        "method='auto' (iterative), or use a smaller mesh")
+    return method
+
+
+def _solve_arpack(L, B, k, sigma, backend, rng):
+    # machine precision: a looser ARPACK tolerance was seen to miss copies of multiple eigenvalues
     t0 = time.perf_counter()
     fac = factorize(L - sigma * B, backend=backend)
     t1 = time.perf_counter()
@@ -171,7 +186,7 @@ def _solve_arpack(L, B, k, sigma, backend, rng, tol):
     op = spla.LinearOperator((n, n), matvec=fac.solve, dtype=np.float64)
     ncv = min(n - 1, max(2 * k + 1, 20))
     try:
-        lam, X = spla.eigsh(L, k=k, M=B, sigma=sigma, which="LM", OPinv=op, ncv=ncv, tol=tol,
+        lam, X = spla.eigsh(L, k=k, M=B, sigma=sigma, which="LM", OPinv=op, ncv=ncv, tol=0.0,
                             v0=rng.standard_normal(n), maxiter=max(1000, 20 * k))
     except spla.ArpackNoConvergence as e:
         raise SolverError(f"the eigensolver did not converge for k={k}: {e}") from e
@@ -280,32 +295,21 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         lam, X, used, s, res = cached
         timings = {"assemble": t_asm, "factorize": 0.0, "solve": 0.0, "cache": True}
     else:
-        use_dense = method == "dense" or (method == "auto" and (r <= DENSE_MAX_N or k > r // 2))
-        if method == "auto" and not use_dense:
-            method = "lanczos" if r >= LANCZOS_MIN_N else "arpack"
-        if not use_dense and k >= r - 1:
-            use_dense = True  # ARPACK needs k < n - 1
-        if use_dense and r > DENSE_LIMIT_N:
-            if method == "dense" or k >= r - 1:
-                raise MeshError(f"a dense eigensolve of {r} vertices would need about "
-                                f"{2 * 8 * r * r / 2**30:.0f} GiB: ask for k < {r - 1} eigenpairs with "
-                                "method='auto' (iterative), or use a smaller mesh")
-            use_dense = False
-            method = "lanczos" if r >= LANCZOS_MIN_N else "arpack"
+        method = _choose_method(method, r, k)
+        use_dense = method == "dense"
         s = float("nan") if use_dense else (_shift(B) if sigma is None else float(sigma))
         rng = np.random.default_rng(seed)
         if use_dense:
             lam, X, used, t_fac, t_sol = _solve_dense(L, B, k)
         elif method == "arpack":
-            # machine precision: a looser ARPACK tolerance can miss copies of multiple eigenvalues
-            lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, rng, 0.0)
+            lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, rng)
         else:
             lam, X, used, t_fac, t_sol = _solve_lanczos(L, B, k, s, backend, seed, tol, block)
         order = np.argsort(lam)
         lam, X = lam[order], X[:, order]
         if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(X))):
             raise SolverError("the eigensolver returned non-finite values")
-        if used == "dense" or method == "arpack":
+        if method != "lanczos":  # its Rayleigh-Ritz already made X B-orthonormal
             X = _b_orthonormalize(X, B)
         X = _fix_signs(X)
         lam = np.maximum(lam, 0.0)

@@ -128,16 +128,14 @@ def main():
             np.savez(path, V=V, F=F)
             for k in ks:
                 cases.append((name, len(V), k, path))
-    rows = []
     print("| mesh | n | k | method | seconds | peak MB | o3dheat speed-up | max rel. eigenvalue diff |")
     print("|---|---|---|---|---|---|---|---|")
     for name, n, k, path in cases:
         res = {}
         for method in methods:
             out = tmp / f"{name}-{n}-{k}-{method}.npy"
-            env = dict(os.environ)
             r = subprocess.run([sys.executable, __file__, "--child", method, str(path), str(k), str(out)],
-                               capture_output=True, text=True, env=env)
+                               capture_output=True, text=True)
             if r.returncode != 0:
                 print(f"| {name} | {n} | {k} | {method} | failed: {r.stderr.strip().splitlines()[-1][:80]} | | | |")
                 continue
@@ -151,7 +149,6 @@ def main():
                 diff = f"{np.max(np.abs(a[1:] - b[1:]) / np.abs(b[1:])):.1e}"
             print(f"| {name} | {n} | {k} | {method} ({v['extra']}) | {v['seconds']:.2f} | {v['peak_mb']:.0f} | "
                   f"{ratio} | {diff} |", flush=True)
-            rows.append((name, n, k, method, v["seconds"], v["peak_mb"]))
     print(f"\nmachine: {os.cpu_count()} cores; python {sys.version.split()[0]}; "
           f"date {time.strftime('%Y-%m-%d')}")
 
