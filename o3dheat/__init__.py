@@ -4,12 +4,15 @@ Implements the weighted linear-FEM heat kernel of Patanè & Falcidieno, "Multi-S
 Spaces for Shape Processing and Analysis" (SMI 2010). See the README for a tour.
 """
 
+from .approximation import ScaleSpace, feature_driven, scale_space
 from .diffusion import diffuse
 from .errors import MeshError, SolverError
 from .fem import mass_matrix, stiffness_matrix
 from .kernel import HeatKernel
 from .mesh import MeshReport, as_arrays, check_mesh
 from .spectrum import Spectrum, eigensolve
+from .topology import (CriticalPoints, PersistenceDiagram, critical_points, level_sets, persistence,
+                       simplify_critical_points)
 
 __version__ = "0.1.0"
 
@@ -19,6 +22,9 @@ __all__ = [
     "eigensolve", "Spectrum",
     "HeatKernel",
     "diffuse",
+    "critical_points", "CriticalPoints", "persistence", "PersistenceDiagram",
+    "simplify_critical_points", "level_sets",
+    "feature_driven", "scale_space", "ScaleSpace",
     "MeshError", "SolverError",
     "__version__",
 ]

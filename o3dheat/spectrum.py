@@ -71,6 +71,9 @@ class Spectrum:
         The shift used (``nan`` for the dense solver).
     timings : dict
         Seconds spent per stage ("assemble", "factorize", "solve").
+    faces : (m, 3) int64 ndarray or None
+        The faces the operators were built on (after the repairs of :func:`o3dheat.mesh.prepare`),
+        in the caller's vertex numbering: what the topology of smoothed fields is computed on.
     """
 
     eigenvalues: np.ndarray
@@ -83,6 +86,7 @@ class Spectrum:
     residuals: np.ndarray
     sigma: float = float("nan")
     timings: dict = field(default_factory=dict)
+    faces: np.ndarray | None = None
 
     @property
     def n(self):
@@ -323,7 +327,8 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         P = sp.csc_matrix((np.ones(r), (keep, np.arange(r))), shape=(n, r))
         L, B = sp.csc_matrix(P @ L @ P.T), sp.csc_matrix(P @ B @ P.T)
         X, areas = prep.expand(X), prep.expand(areas)
-    return Spectrum(lam, X, sp.csc_matrix(L), sp.csc_matrix(B), mass, areas, used, res, s, timings)
+    return Spectrum(lam, X, sp.csc_matrix(L), sp.csc_matrix(B), mass, areas, used, res, s, timings,
+                    faces=prep.keep[F])
 
 
 def _check_k(k):

@@ -1,0 +1,386 @@
+"""Critical points, persistence, simplification and level sets (PAPER.md rows P12, P15, P16)."""
+
+import itertools
+import logging
+
+import numpy as np
+import open3d as o3d
+import pytest
+from conftest import grid, icosphere, irregular, torus
+
+import o3dheat
+from o3dheat.topology import Surface
+
+
+# ------------------------------------------------------------------------------------ meshes
+def genus2():
+    """Two tori joined by a triangular tube: a closed genus-2 surface (χ = -2)."""
+    V1, F1 = torus(1.0, 0.4, 24, 12)
+    V2, F2 = V1 + [3.0, 0.0, 0.0], F1 + len(V1)
+    a, b = F1[0], F2[0][::-1]
+    tube = []
+    for i in range(3):
+        j = (i + 1) % 3
+        tube += [[a[i], b[i], a[j]], [a[j], b[i], b[j]]]
+    return np.concatenate([V1, V2]), np.concatenate([F1[1:], F2[1:], tube])
+
+
+def annulus():
+    """A square with a square hole (whole grid cells removed, so no pinched vertex): χ = 0."""
+    V, F = grid(1.0, 1.0, 12, 12)
+    q = len(F) // 2
+    c = (V[F[:q, 0]] + V[F[:q, 2]]) / 2
+    hole = np.all(np.abs(c[:, :2] - 0.5) < 0.2, axis=1)
+    return V, F[~np.concatenate([hole, hole])]
+
+
+def two_spheres():
+    V, F = icosphere(1)
+    return np.concatenate([V, V + 3.0]), np.concatenate([F, F + len(V)])
+
+
+# name -> (mesh, χ, genus per component, boundary loops per component, components)
+SURFACES = {
+    "sphere": (icosphere(2), 2),
+    "torus": (torus(1.0, 0.4, 24, 12), 0),
+    "genus2": (genus2(), -2),
+    "disk": (grid(2.0, 1.0, 12, 8), 1),
+    "annulus": (annulus(), 0),
+    "irregular": (irregular(), 2),
+    "two spheres": (two_spheres(), 4),
+}
+
+# essential (minima, saddles, maxima) expected on each surface
+ESSENTIAL = {"sphere": (1, 0, 1), "torus": (1, 2, 1), "genus2": (1, 4, 1), "disk": (1, 0, 0),
+             "annulus": (1, 1, 0), "irregular": (1, 0, 1), "two spheres": (2, 0, 2)}
+
+
+def fields(n, seed):
+    rng = np.random.default_rng(seed)
+    yield "random", rng.standard_normal(n)
+    yield "plateaus", np.round(rng.standard_normal(n))  # many exact ties
+    yield "constant", np.zeros(n)
+
+
+def upright_torus_height():
+    V, F = torus(1.0, 0.4, 48, 24)  # axis along z: "upright" means the axis horizontal
+    return (V, F), V[:, 0]
+
+
+# --------------------------------------------------------------------- brute-force references
+def link_cycle(faces, v):
+    """Ordered neighbours of v walking around its faces, and whether v is on the boundary."""
+    opp = [tuple(u for u in t if u != v) for t in faces]
+    adj = {}
+    for a, b in opp:
+        adj.setdefault(a, []).append(b)
+        adj.setdefault(b, []).append(a)
+    ends = [u for u, nb in adj.items() if len(nb) == 1]
+    start = ends[0] if ends else next(iter(adj))
+    order, prev = [start], None
+    while True:
+        nxt = [u for u in adj[order[-1]] if u != prev and u not in order]
+        if not nxt:
+            break
+        prev = order[-1]
+        order.append(nxt[0])
+    assert len(order) == len(adj)
+    return order, bool(ends)
+
+
+def brute_critical(F, f):
+    """Classification by walking each link and counting the lower runs."""
+    def key(i):  # simulation of simplicity
+        return (f[i], i)
+
+    n = len(f)
+    out = {"min": [], "max": [], "saddle": {}}
+    star = {}
+    for t in F.tolist():
+        for v in t:
+            star.setdefault(v, []).append(t)
+    for v in sorted(star):
+        cyc, boundary = link_cycle(star[v], v)
+        low = [key(u) < key(v) for u in cyc]
+        if not any(low):
+            out["min"].append(v)
+            continue
+        if all(low) and not boundary:
+            out["max"].append(v)
+            continue
+        seq = low if boundary else low + low[:1]
+        runs = sum(1 for i in range(len(low)) if low[i] and (i == 0 or not seq[i - 1]))
+        if not boundary and low[0] and low[-1]:
+            runs -= 1  # the run through the start of the cycle was counted twice
+        if runs >= 2:
+            out["saddle"][int(v)] = runs - 1
+    assert n >= len(out["min"])
+    return out
+
+
+def brute_persistence(F, f):
+    """Standard boundary-matrix reduction (Z/2) of the lower-star filtration, by vertex pairs."""
+    n = len(f)
+    order = np.argsort(f, kind="stable")
+    rank = np.empty(n, int)
+    rank[order] = np.arange(n)
+    E = sorted({tuple(sorted(e)) for t in F for e in itertools.combinations(t, 2)})
+    T = [tuple(sorted(t)) for t in F]
+    used = set(np.unique(F).tolist())
+    simplices = [(v,) for v in range(n) if v in used] + E + T
+    simplices.sort(key=lambda s: (sorted((rank[v] for v in s), reverse=True), len(s)))
+    index = {s: i for i, s in enumerate(simplices)}
+    cols = [{index[tuple(sorted(c))] for c in itertools.combinations(s, len(s) - 1)} if len(s) > 1
+            else set() for s in simplices]
+    low_of = {}
+    pairs = []
+    def top(s):
+        return max(s, key=lambda v: rank[v])
+
+    for j, col in enumerate(cols):
+        while col and max(col) in low_of:
+            col ^= cols[low_of[max(col)]]
+        if col:
+            i = max(col)
+            low_of[i] = j
+            a, b = top(simplices[i]), top(simplices[j])
+            if a != b:
+                pairs.append((len(simplices[i]) - 1, a, b))
+    return pairs
+
+
+# ------------------------------------------------------------------------------------ tests
+def test_upright_torus_height_function():
+    mesh, h = upright_torus_height()
+    cp = o3dheat.critical_points(mesh, h)
+    assert cp.counts == (1, 2, 1)
+    V = mesh[0]
+    assert V[cp.minima[0], 0] == V[:, 0].min() and V[cp.maxima[0], 0] == V[:, 0].max()
+    assert np.allclose(np.abs(V[cp.saddles, 0]), 0.6, atol=0.02)  # the inner equator R - r
+
+
+@pytest.mark.parametrize("name", list(SURFACES))
+def test_morse_count_equals_euler_characteristic(name, caplog):
+    (V, F), chi = SURFACES[name]
+    assert Surface((V, F)).euler_characteristic == chi
+    for _, f in fields(len(V), 1):
+        with caplog.at_level(logging.WARNING, logger="o3dheat"):
+            cp = o3dheat.critical_points((V, F), f)
+        assert cp.euler_characteristic == chi
+
+
+@pytest.mark.parametrize("name", ["sphere", "torus", "disk", "annulus", "irregular"])
+def test_critical_points_match_brute_force(name):
+    (V, F), _ = SURFACES[name]
+    for label, f in fields(len(V), 2):
+        cp = o3dheat.critical_points((V, F), f)
+        ref = brute_critical(F, f)
+        assert cp.minima.tolist() == sorted(ref["min"]), label
+        assert cp.maxima.tolist() == sorted(ref["max"]), label
+        assert dict(zip(cp.saddles.tolist(), cp.saddle_multiplicity.tolist())) == ref["saddle"], label
+
+
+def test_monkey_saddle_has_multiplicity_two():
+    # a vertex whose cyclic link alternates low/high three times: Re((x + iy)^3)
+    k = 12
+    ang = 2 * np.pi * np.arange(k) / k
+    V = np.concatenate([[[0, 0, 0]], np.stack([np.cos(ang), np.sin(ang), np.zeros(k)], 1)])
+    F = np.array([[0, 1 + i, 1 + (i + 1) % k] for i in range(k)])
+    f = np.concatenate([[0.0], np.cos(3 * ang)])
+    cp = o3dheat.critical_points((V, F), f)
+    assert cp.saddles.tolist() == [0] and cp.saddle_multiplicity.tolist() == [2]
+    assert cp.euler_characteristic == 1  # a disk
+
+
+def test_boundary_rule():
+    V, F = grid(2.0, 1.0, 12, 8)  # a disk, χ = 1
+    cp = o3dheat.critical_points((V, F), V[:, 0] + 0.1 * V[:, 1])  # a tilted plane
+    # the minimum is the lowest boundary corner; the highest corner is regular (boundary maximum)
+    assert cp.counts == (1, 0, 0)
+    assert cp.minima.tolist() == [int(np.argmin(V[:, 0] + 0.1 * V[:, 1]))]
+    # a boundary vertex with two lower runs along its path is a saddle: a valley on each side
+    cp = o3dheat.critical_points((V, F), -np.abs(V[:, 0] - 1.0) + 0.01 * V[:, 1])
+    assert cp.counts[1] >= 1 and cp.euler_characteristic == 1
+
+
+@pytest.mark.parametrize("name", list(SURFACES))
+def test_persistence_accounts_for_every_critical_point(name):
+    (V, F), _ = SURFACES[name]
+    for label, f in fields(len(V), 3):
+        cp = o3dheat.critical_points((V, F), f)
+        d = o3dheat.persistence((V, F), f)
+        want = np.zeros(len(V), int)
+        want[cp.minima] += 1
+        want[cp.maxima] += 1
+        np.add.at(want, cp.saddles, cp.saddle_multiplicity)
+        got = np.bincount(np.concatenate([d.pairs.reshape(-1), d.essential]), minlength=len(V))
+        assert np.array_equal(got, want), label
+        kinds = cp.kind
+        assert np.all(kinds[d.pairs[d.dimension == 0, 0]] == 1)  # minimum - saddle
+        assert np.all(kinds[d.pairs[d.dimension == 1, 0]] == 3)  # maximum - saddle
+        assert np.all(kinds[d.pairs[:, 1]] == 2)
+        assert tuple(np.bincount(d.essential_dimension, minlength=3)) == ESSENTIAL[name], label
+        assert np.all(d.persistence >= 0) and np.allclose(d.persistence, np.abs(d.death - d.birth))
+
+
+@pytest.mark.parametrize("name", ["sphere", "torus", "annulus", "disk"])
+def test_persistence_matches_matrix_reduction(name):
+    (V, F), _ = SURFACES[name]
+    rng = np.random.default_rng(4)
+    f = rng.standard_normal(len(V))
+    d = o3dheat.persistence((V, F), f)
+    ours = sorted((0, int(a), int(b)) for a, b in d.pairs[d.dimension == 0])
+    ours += sorted((1, int(b), int(a)) for a, b in d.pairs[d.dimension == 1])  # (saddle, max)
+    assert sorted(ours) == sorted(brute_persistence(F, f))
+
+
+def _gudhi_diagrams(F, f):
+    gudhi = pytest.importorskip("gudhi")
+    st = gudhi.SimplexTree()
+    used = np.unique(F)  # unreferenced vertices are not part of the surface
+    st.insert_batch(used[None, :], f[used])
+    E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [0, 2]]]), axis=1), axis=0)
+    st.insert_batch(E.T, f[E].max(axis=1))
+    st.insert_batch(F.T, f[F].max(axis=1))
+    st.compute_persistence(homology_coeff_field=2, min_persistence=-1, persistence_dim_max=True)
+    return [st.persistence_intervals_in_dimension(k) for k in (0, 1, 2)]
+
+
+def _finite(D):
+    D = D[np.isfinite(D[:, 1])] if len(D) else D.reshape(0, 2)
+    D = D[D[:, 1] > D[:, 0]]
+    return D[np.lexsort((D[:, 1], D[:, 0]))]
+
+
+@pytest.mark.parametrize("name", list(SURFACES))
+def test_persistence_matches_gudhi(name):
+    (V, F), _ = SURFACES[name]
+    for label, f in fields(len(V), 5):
+        g = _gudhi_diagrams(F, f)
+        d = o3dheat.persistence((V, F), f)
+        D0 = _finite(d.intervals(0))
+        D1 = _finite(d.intervals(1)[:, ::-1])  # read as sublevel (saddle, maximum)
+        assert np.array_equal(D0, _finite(g[0])), label
+        assert np.array_equal(D1, _finite(g[1])), label
+        # essential classes: components, 1-cycles, closed components
+        inf = [int(np.sum(~np.isfinite(x[:, 1]))) if len(x) else 0 for x in g]
+        assert tuple(inf) == ESSENTIAL[name], label
+
+
+def test_persistence_is_stable():
+    gudhi = pytest.importorskip("gudhi")
+    V, F = irregular()
+    rng = np.random.default_rng(6)
+    f = V[:, 0] + 0.2 * rng.standard_normal(len(V))
+    for eps in (1e-3, 1e-2, 0.1):
+        e = eps * rng.uniform(-1, 1, len(V))
+        d1, d2 = o3dheat.persistence((V, F), f), o3dheat.persistence((V, F), f + e)
+        for k in (0, 1):
+            assert gudhi.bottleneck_distance(d1.intervals(k), d2.intervals(k)) <= np.abs(e).max() + 1e-12
+
+
+def test_simplification_is_monotone_and_keeps_essentials():
+    V, F = irregular()
+    f = V[:, 2] + 0.05 * np.random.default_rng(7).standard_normal(len(V))
+    d = o3dheat.persistence((V, F), f)
+    cp = o3dheat.critical_points((V, F), f)
+    all_critical = np.unique(np.concatenate([cp.minima, cp.saddles, cp.maxima]))
+    assert np.array_equal(o3dheat.simplify_critical_points((V, F), f), all_critical)
+    prev = None
+    for delta in np.linspace(0, d.persistence.max() * 1.01, 12):
+        keep = o3dheat.simplify_critical_points((V, F), f, delta=delta, diagram=d)
+        assert set(d.essential) <= set(keep)
+        if prev is not None:
+            assert set(keep) <= set(prev)
+        prev = keep
+    assert set(prev) == set(d.essential)
+    sizes = [len(o3dheat.simplify_critical_points((V, F), f, keep_fraction=q, diagram=d))
+             for q in (0.0, 0.1, 0.5, 1.0)]
+    assert sizes == sorted(sizes) and sizes[-1] == len(all_critical)
+
+
+@pytest.mark.parametrize("kwargs", [dict(delta=-1.0), dict(delta=np.nan), dict(keep_fraction=1.5),
+                                    dict(delta=0.1, keep_fraction=0.5), dict(diagram="no")])
+def test_simplification_bad_arguments(kwargs):
+    V, F = icosphere(1)
+    with pytest.raises(o3dheat.MeshError):
+        o3dheat.simplify_critical_points((V, F), V[:, 0], **kwargs)
+
+
+def test_mesh_inputs_agree():
+    m = o3d.t.geometry.TriangleMesh.create_torus(1.0, 0.4, 30, 15)
+    V, F = m.vertex.positions.numpy(), m.triangle.indices.numpy()
+    f = V[:, 0] + np.sin(5 * V[:, 1])
+    ref = o3dheat.critical_points((V, F), f)
+    for mesh in (m, m.to_legacy(), Surface(m)):
+        cp = o3dheat.critical_points(mesh, f)
+        assert cp.same_as(ref)
+        assert len(o3dheat.persistence(mesh, f)) == len(o3dheat.persistence((V, F), f))
+
+
+# ------------------------------------------------------------------------------- bad input
+def test_bad_fields():
+    V, F = icosphere(1)
+    for f, msg in [(np.zeros(len(V) + 1), "one value per vertex"), (np.full(len(V), np.nan), "NaN"),
+                   (np.zeros((len(V), 2)), "one value per vertex"), (np.array(["a"] * len(V)), "numeric")]:
+        for fn in (o3dheat.critical_points, o3dheat.persistence):
+            with pytest.raises(o3dheat.MeshError, match=msg):
+                fn((V, F), f)
+
+
+def test_constant_field_is_documented_behaviour(caplog):
+    V, F = torus(1.0, 0.4, 24, 12)
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        cp = o3dheat.critical_points((V, F), np.ones(len(V)))
+    assert "constant" in caplog.text and cp.euler_characteristic == 0
+    d = o3dheat.persistence((V, F), np.ones(len(V)))
+    assert np.all(d.persistence == 0)
+
+
+def test_non_manifold_meshes_are_refused():
+    V, F = icosphere(1)
+    # an edge with three faces: a fin on the sphere
+    a, b = F[0, 0], F[0, 1]
+    V2 = np.concatenate([V, [[3.0, 3.0, 3.0]]])
+    with pytest.raises(o3dheat.MeshError, match="non-manifold"):
+        o3dheat.critical_points((V2, np.concatenate([F, [[a, b, len(V)]]])), V2[:, 0])
+    # two spheres sharing one vertex: a pinched (non-manifold) vertex
+    F2 = F + len(V) - 1
+    F2[F2 == len(V) - 1] = 0
+    F2[F2 == 2 * len(V) - 1] = len(V) - 1
+    Vb = np.concatenate([V, V[1:] + 5.0])
+    with pytest.raises(o3dheat.MeshError, match="non-manifold"):
+        o3dheat.persistence((Vb, np.concatenate([F, F2])), Vb[:, 0])
+
+
+def test_unreferenced_and_degenerate(caplog):
+    V, F = icosphere(1)
+    V2 = np.concatenate([V, [[9.0, 9.0, 9.0]]])  # an isolated vertex: never critical
+    F2 = np.concatenate([F, [[0, 0, 1]], F[:1]])  # a degenerate and a duplicate face
+    f = np.append(V[:, 2], -100.0)
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        cp = o3dheat.critical_points((V2, F2), f)
+    assert "degenerate" in caplog.text and "duplicate" in caplog.text
+    assert len(V) not in cp.minima and cp.euler_characteristic == 2
+
+
+# -------------------------------------------------------------------------------- level sets
+def test_level_sets_of_the_height_on_a_sphere():
+    V, F = icosphere(3)
+    ls = o3dheat.level_sets((V, F), V[:, 2], values=[0.0, 0.5])
+    P, L = np.asarray(ls.points), np.asarray(ls.lines)
+    assert len(L) > 0 and np.all(np.isin(np.round(P[:, 2], 12), [0.0, 0.5]))
+    # each level set is a closed curve: every point is the end of exactly two segments
+    assert np.all(np.bincount(L.reshape(-1), minlength=len(P)) == 2)
+    length = np.linalg.norm(P[L[:, 0]] - P[L[:, 1]], axis=1)
+    eq = np.abs(P[L[:, 0], 2]) < 1e-12
+    assert abs(length[eq].sum() - 2 * np.pi) < 0.05  # the equator of the unit sphere
+    assert len(o3dheat.level_sets((V, F), V[:, 2], count=5).lines) > len(L)
+
+
+def test_level_sets_bad_input():
+    V, F = icosphere(1)
+    for kwargs in (dict(values=[np.nan]), dict(count=0), dict(values=[0.0], count=3)):
+        with pytest.raises(o3dheat.MeshError):
+            o3dheat.level_sets((V, F), V[:, 2], **kwargs)
+    assert len(o3dheat.level_sets((V, F), V[:, 2], values=[5.0]).lines) == 0
