@@ -32,7 +32,7 @@ from .lanczos import block_lanczos, rayleigh_ritz
 from .linalg import factorize
 from .mesh import prepare
 
-__all__ = ["Spectrum", "eigensolve", "default_cache_dir"]
+__all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "default_cache_dir"]
 
 log = logging.getLogger("o3dheat")
 
@@ -299,26 +299,8 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         lam, X, used, s, res = cached
         timings = {"assemble": t_asm, "factorize": 0.0, "solve": 0.0, "cache": True}
     else:
-        method = _choose_method(method, r, k)
-        use_dense = method == "dense"
-        s = float("nan") if use_dense else (_shift(B) if sigma is None else float(sigma))
-        rng = np.random.default_rng(seed)
-        if use_dense:
-            lam, X, used, t_fac, t_sol = _solve_dense(L, B, k)
-        elif method == "arpack":
-            lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, rng)
-        else:
-            lam, X, used, t_fac, t_sol = _solve_lanczos(L, B, k, s, backend, seed, tol, block)
-        order = np.argsort(lam)
-        lam, X = lam[order], X[:, order]
-        if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(X))):
-            raise SolverError("the eigensolver returned non-finite values")
-        if method != "lanczos":  # its Rayleigh-Ritz already made X B-orthonormal
-            X = _b_orthonormalize(X, B)
-        X = _fix_signs(X)
-        lam = np.maximum(lam, 0.0)
-        res = _residuals(L, B, lam, X)
-        timings = {"assemble": t_asm, "factorize": t_fac, "solve": t_sol, "cache": False}
+        lam, X, used, s, res, timings = _solve(L, B, k, method, sigma, backend, seed, tol, block)
+        timings = {"assemble": t_asm, **timings}
         if key:
             _cache_save(cache_dir, key, lam, X, used, s, res)
     n = prep.n_input
@@ -329,6 +311,76 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         X, areas = prep.expand(X), prep.expand(areas)
     return Spectrum(lam, X, sp.csc_matrix(L), sp.csc_matrix(B), mass, areas, used, res, s, timings,
                     faces=prep.keep[F])
+
+
+def _solve(L, B, k, method, sigma, backend, seed, tol, block):
+    """Smallest k eigenpairs of L x = λ B x: (λ, X B-orthonormal with fixed signs, backend, σ,
+    residuals, timings)."""
+    r = L.shape[0]
+    method = _choose_method(method, r, k)
+    use_dense = method == "dense"
+    s = float("nan") if use_dense else (_shift(B) if sigma is None else float(sigma))
+    rng = np.random.default_rng(seed)
+    if use_dense:
+        lam, X, used, t_fac, t_sol = _solve_dense(L, B, k)
+    elif method == "arpack":
+        lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, rng)
+    else:
+        lam, X, used, t_fac, t_sol = _solve_lanczos(L, B, k, s, backend, seed, tol, block)
+    order = np.argsort(lam)
+    lam, X = lam[order], X[:, order]
+    if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(X))):
+        raise SolverError("the eigensolver returned non-finite values")
+    if method != "lanczos":  # its Rayleigh-Ritz already made X B-orthonormal
+        X = _b_orthonormalize(X, B)
+    X = _fix_signs(X)
+    lam = np.maximum(lam, 0.0)
+    res = _residuals(L, B, lam, X)
+    return lam, X, used, s, res, {"factorize": t_fac, "solve": t_sol, "cache": False}
+
+
+def eigensolve_operators(L, B, k=100, sigma=None, backend="auto", method="auto", tol=1e-8, seed=0,
+                         block=8):
+    """The smallest k eigenpairs of ``L x = λ B x`` for operators built elsewhere.
+
+    For Laplacians that do not come from a triangle mesh, for example robust-laplacian's
+    point-cloud Laplacian. The result has no faces (no topology) and ``mass_kind="given"``.
+
+    Parameters
+    ----------
+    L : (n, n) sparse matrix
+        Symmetric positive semi-definite.
+    B : (n, n) sparse matrix
+        Symmetric positive definite.
+    k, sigma, backend, method, tol, seed, block
+        As for :func:`eigensolve`.
+
+    Returns
+    -------
+    Spectrum
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.sparse as sp
+    >>> from o3dheat.spectrum import eigensolve_operators
+    >>> L = sp.diags([np.r_[1, 2 * np.ones(8), 1], -np.ones(9), -np.ones(9)], [0, 1, -1])  # a path graph
+    >>> eigensolve_operators(L, sp.identity(10), k=2).eigenvalues.round(4).tolist()
+    [0.0, 0.0979]
+    """
+    if method not in ("auto", "lanczos", "arpack", "dense"):
+        raise MeshError(f"unknown method {method!r}: use 'auto', 'lanczos', 'arpack' or 'dense'")
+    L, B = sp.csc_matrix(L, dtype=np.float64), sp.csc_matrix(B, dtype=np.float64)
+    n = L.shape[0]
+    if L.shape != (n, n) or B.shape != (n, n):
+        raise MeshError(f"L and B must be square and of one size, got {L.shape} and {B.shape}")
+    if abs(L - L.T).max() > 1e-10 * abs(L).max() or abs(B - B.T).max() > 1e-10 * abs(B).max():
+        raise MeshError("L and B must be symmetric")
+    k = _check_k(k)
+    if k > n:
+        raise MeshError(f"k={k} exceeds the size {n}")
+    lam, X, used, s, res, timings = _solve(L, B, k, method, sigma, backend, seed, tol, block)
+    areas = np.asarray(B.sum(axis=1)).ravel()
+    return Spectrum(lam, X, L, B, "given", areas, used, res, s, timings)
 
 
 def _check_k(k):

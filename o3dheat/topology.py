@@ -129,34 +129,20 @@ class Surface:
             F = F[~bad]
         if len(F) == 0:
             raise MeshError("no face is left once the degenerate ones are dropped")
-        key = np.sort(F, axis=1)
-        key = (key[:, 0] * n + key[:, 1]) * n + key[:, 2] if n < 2_000_000 else None
-        if key is not None:
-            _, first = np.unique(key, return_index=True)
-        else:
+        edges = _edge_table(F, n)
+        if np.any(edges[3] > 2):  # duplicate faces are one cause: drop them, then look again
             _, first = np.unique(np.sort(F, axis=1), axis=0, return_index=True)
-        if len(first) < len(F):
-            log.warning("dropping %d duplicate faces", len(F) - len(first))
-            F = F[np.sort(first)]
-        m = len(F)
-        a = F.reshape(-1)  # half-edge h = 3 t + s goes from a[h] = F[t, s] to F[t, s + 1]
-        b = F[:, [1, 2, 0]].reshape(-1)
-        hkey = np.minimum(a, b) * n + np.maximum(a, b)
-        order = np.argsort(hkey)
-        sk = hkey[order]
-        new = np.empty(len(sk), bool)
-        new[0] = True
-        np.not_equal(sk[1:], sk[:-1], out=new[1:])
-        eid_sorted = np.cumsum(new) - 1
-        face_edges = np.empty(3 * m, np.int64)
-        face_edges[order] = eid_sorted
-        starts = np.flatnonzero(new)
-        counts = np.diff(np.append(starts, len(sk)))
+            if len(first) < len(F):
+                log.warning("dropping %d duplicate faces", len(F) - len(first))
+                F = F[np.sort(first)]
+                edges = _edge_table(F, n)
+        ek, order, new, counts, face_edges = edges
         if np.any(counts > 2):
             raise MeshError(f"{int(np.sum(counts > 2))} edges have more than two faces (non-manifold): "
                             "topology needs a 2-manifold; repair the mesh first, for example with "
                             "Open3D's remove_non_manifold_edges()")
-        ek = sk[starts]
+        m = len(F)
+        a = F.reshape(-1)
         self.n = n
         self.F = F
         self.E = np.stack([ek // n, ek % n], axis=1)
@@ -174,25 +160,26 @@ class Surface:
     def _check_fans(self, a, order, new):
         """Every vertex must have one fan: the corners around it connected across shared edges."""
         m3 = len(a)
-        slot = np.tile(np.array([0, 1, 2]), m3 // 3)
-        base = np.arange(m3) - slot
-        nxt = base + (slot + 1) % 3  # the corner where half-edge h ends
+        itype = np.int32 if m3 < 2**31 - 1 else np.int64
+        c = np.arange(m3, dtype=itype).reshape(-1, 3)
+        nxt = c[:, [1, 2, 0]].reshape(-1)  # the corner where half-edge h ends
+        prev = c[:, [2, 0, 1]].reshape(-1)  # the half-edge that ends at corner h
         twin_pos = np.flatnonzero(~new[1:])  # sorted positions p, p + 1 hold the two half-edges
         h1, h2 = order[twin_pos], order[twin_pos + 1]
-        # corner c (at vertex a[c]) is joined to the corner at the same vertex in the face across
-        # half-edge c, and across half-edge prev(c) (which ends at a[c]): one array per side
-        across = np.arange(m3)
+        # corner h (at vertex a[h]) is joined to the corner at the same vertex in the face across
+        # half-edge h, and in the face across half-edge prev(h): one array per side
+        across = c.reshape(-1).copy()
         across_end = nxt.copy()
         same = a[h1] == a[h2]  # the two faces orient the edge alike (inconsistent orientation)
         across[h1] = np.where(same, h2, nxt[h2])
         across_end[h1] = np.where(same, nxt[h2], h2)
         across[h2] = np.where(same, h1, nxt[h1])
         across_end[h2] = np.where(same, nxt[h1], h1)
-        prev = base + (slot + 2) % 3
-        ind = np.empty(2 * m3, np.int64)
+        ind = np.empty(2 * m3, itype)
         ind[0::2] = across
         ind[1::2] = across_end[prev]
-        g = sp.csr_matrix((np.ones(2 * m3, np.int8), ind, np.arange(0, 2 * m3 + 1, 2)), shape=(m3, m3))
+        g = sp.csr_matrix((np.ones(2 * m3, np.int8), ind, np.arange(0, 2 * m3 + 1, 2, dtype=itype)),
+                          shape=(m3, m3))
         # the corner graph is symmetric: its strong components are its components, found
         # without the transpose an undirected search would build
         k, lab = connected_components(g, directed=True, connection="strong")
@@ -227,6 +214,28 @@ class Surface:
             raise MeshError(f"{name} has {int(bad.sum())} NaN or infinite values (first at vertex "
                             f"{int(np.flatnonzero(bad)[0])})")
         return arr
+
+
+def _edge_table(F, n):
+    """Unique edges of the faces by one sort of the half-edges.
+
+    Half-edge ``h = 3 t + s`` goes from ``F[t, s]`` to ``F[t, s + 1]``. Returns the edge keys
+    ``lo * n + hi``, the sorting permutation of the half-edges, the "first of its edge" flags in
+    sorted order, the number of faces per edge and the edge index of every half-edge.
+    """
+    a = F.reshape(-1)
+    b = F[:, [1, 2, 0]].reshape(-1)
+    hkey = np.minimum(a, b) * n + np.maximum(a, b)
+    order = np.argsort(hkey)
+    sk = hkey[order]
+    new = np.empty(len(sk), bool)
+    new[0] = True
+    np.not_equal(sk[1:], sk[:-1], out=new[1:])
+    face_edges = np.empty(len(sk), np.int64)
+    face_edges[order] = np.cumsum(new) - 1
+    starts = np.flatnonzero(new)
+    counts = np.diff(np.append(starts, len(sk)))
+    return sk[starts], order, new, counts, face_edges
 
 
 def _rank(f):
