@@ -114,6 +114,20 @@ def write_mesh(path, mesh, binary=True):
     face["vertex_indices"] = F
     ply = PlyData([PlyElement.describe(vert, "vertex"), PlyElement.describe(face, "face")],
                   text=not binary, comments=comments)
+    atomic_write(path, ply.write)
+
+
+def atomic_write(path, write):
+    """Write a file atomically: ``write(binary_file)`` goes to a temporary file in the same
+    folder, which then replaces ``path``. On any error the temporary file is removed and
+    ``path`` is untouched. The file gets the permissions ``open()`` would give it.
+
+    Raises
+    ------
+    MeshError
+        The folder does not exist or is not writable.
+    """
+    path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise MeshError(f"cannot write {path}: folder {folder} does not exist")
@@ -123,13 +137,18 @@ def write_mesh(path, mesh, binary=True):
         raise MeshError(f"cannot write {path}: {e.strerror}") from e
     try:
         with os.fdopen(fd, "wb") as fh:
-            ply.write(fh)
+            write(fh)
         os.chmod(tmp, _file_mode(path))  # mkstemp makes 0600 files: use what open() would
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def atomic_write_text(path, text):
+    """Write a text file (UTF-8) atomically (see :func:`atomic_write`)."""
+    atomic_write(path, lambda fh: fh.write(text.encode("utf-8")))
 
 
 def read_mesh(path):

@@ -1,0 +1,168 @@
+"""What every built-in filter shares: the working copy of the input, its attributes, its spectrum.
+
+Meshes: the filter works on the mesh itself. Point clouds: ``operators="reconstruct"`` builds a
+surface through the points (:func:`o3dheat.sampling.reconstruct`, Poisson), moves input fields to
+its vertices (nearest point), computes there and brings results back to the points by
+barycentric interpolation at the closest surface point; ``operators="robust"`` uses
+robust-laplacian's point-cloud Laplacian and lumped mass on the points directly (no surface, so
+no critical points), when that package is installed (``pip install robust-laplacian``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from o3dheat.errors import MeshError
+
+OPERATORS = ("reconstruct", "robust")
+
+
+class Site:
+    """A copy of the input geometry that a filter reads and writes."""
+
+    def __init__(self, geometry, operators="reconstruct"):
+        import open3d as o3d
+
+        self.o3d = o3d
+        if operators not in OPERATORS:
+            raise MeshError(f"unknown operators {operators!r}: use one of {OPERATORS}")
+        self.operators = operators
+        if isinstance(geometry, o3d.geometry.TriangleMesh):
+            geometry = o3d.t.geometry.TriangleMesh.from_legacy(geometry)
+        elif isinstance(geometry, o3d.geometry.PointCloud):
+            geometry = o3d.t.geometry.PointCloud.from_legacy(geometry)
+        if isinstance(geometry, o3d.t.geometry.TriangleMesh):
+            self.is_mesh = True
+            self.out = geometry.clone()
+            self.attrs = self.out.vertex
+            if "positions" not in self.attrs or "indices" not in self.out.triangle:
+                raise MeshError("the mesh has no vertices or no triangles")
+        elif isinstance(geometry, o3d.t.geometry.PointCloud):
+            self.is_mesh = False
+            self.out = geometry.clone()
+            self.attrs = self.out.point
+            if "positions" not in self.attrs:
+                raise MeshError("the point cloud has no points")
+        else:
+            raise MeshError(f"a filter takes an Open3D TriangleMesh or PointCloud, got {type(geometry).__name__}")
+        self.P = self.attrs.positions.numpy().astype(np.float64)
+        self.n = len(self.P)
+        self._surface = None
+
+    # ------------------------------------------------------------------------ attributes
+    def names(self):
+        return [k for k in self.attrs]
+
+    def attribute(self, name, column=None):
+        """A vertex attribute as float64 (n,) or (n, c); ``column`` picks one column."""
+        if name not in self.attrs:
+            raise MeshError(f"no vertex attribute {name!r}; this geometry has: {', '.join(self.names())}")
+        a = self.attrs[name].numpy()
+        if len(a) != self.n:
+            raise MeshError(f"attribute {name!r} has {len(a)} rows for {self.n} vertices")
+        a = a.astype(np.float64).reshape(self.n, -1) if a.ndim > 1 else a.astype(np.float64)
+        if column is not None:
+            if a.ndim == 1 and column in (0, -1):
+                return a
+            if a.ndim == 1 or not -a.shape[1] <= column < a.shape[1]:
+                cols = 1 if a.ndim == 1 else a.shape[1]
+                raise MeshError(f"attribute {name!r} has {cols} column(s): column {column} does not exist")
+            a = a[:, column]
+        if not np.all(np.isfinite(a)):
+            raise MeshError(f"attribute {name!r} has NaN or infinite values")
+        return a
+
+    def scalar(self, name, column=None):
+        a = self.attribute(name, column)
+        if a.ndim == 2:
+            if a.shape[1] != 1:
+                raise MeshError(f"attribute {name!r} has {a.shape[1]} columns: choose one with column=")
+            a = a[:, 0]
+        return a
+
+    def set(self, name, values):
+        values = np.ascontiguousarray(values)
+        if len(values) != self.n:  # pragma: no cover - a filter bug
+            raise AssertionError(f"{name}: {len(values)} rows for {self.n} vertices")
+        if name in ("positions",):
+            raise MeshError(f"refusing to overwrite {name!r}")
+        self.attrs[name] = self.o3d.core.Tensor(values)
+
+    def result(self):
+        return self.out
+
+    # --------------------------------------------------------------- surface and spectrum
+    def surface(self):
+        """(V, F) the operators are built on: the mesh, or the reconstruction of the points."""
+        if self._surface is None:
+            if self.is_mesh:
+                F = self.out.triangle.indices.numpy().astype(np.int64)
+                self._surface = (self.P, F)
+            elif self.operators == "robust":
+                raise MeshError("this filter needs a surface (faces): use operators='reconstruct' for "
+                                "point clouds")
+            else:
+                from o3dheat.sampling import reconstruct
+
+                self._surface = reconstruct(self.out)
+        return self._surface
+
+    def to_surface(self, f):
+        """Per-input-vertex values -> per-surface-vertex values."""
+        if self.is_mesh or self.operators == "robust":
+            return f
+        from o3dheat.sampling import nearest
+
+        return nearest(f, self.P, self.surface()[0])
+
+    def from_surface(self, g):
+        """Per-surface-vertex values -> per-input-vertex values."""
+        if self.is_mesh or self.operators == "robust":
+            return g
+        from o3dheat.sampling import transfer
+
+        V, F = self.surface()
+        g = np.asarray(g)
+        flat = g.reshape(len(V), -1)
+        out = transfer(flat, V, F, self.P)
+        return out.reshape((self.n,) + g.shape[1:])
+
+    def spectrum(self, k=100, mass="consistent", cache=None):
+        from o3dheat.filters import shared_spectrum
+
+        if not self.is_mesh and self.operators == "robust":
+            return _robust_spectrum(self.P, k)
+        V, F = self.surface()
+        return shared_spectrum(V, F, k=k, mass=mass, cache=cache)
+
+
+_ROBUST = {}
+
+
+def _robust_spectrum(P, k):
+    try:
+        import robust_laplacian
+    except ImportError:
+        raise MeshError("operators='robust' needs robust-laplacian: pip install robust-laplacian "
+                        "(or use operators='reconstruct')") from None
+    from o3dheat.spectrum import eigensolve_operators
+
+    key = (P.tobytes().__hash__(), k)
+    if key not in _ROBUST:
+        L, M = robust_laplacian.point_cloud_laplacian(P)
+        _ROBUST.clear()
+        _ROBUST[key] = eigensolve_operators(L, M, k=min(k, len(P) - 2))
+    return _ROBUST[key]
+
+
+def kernel_of(site, k, mass="consistent", variant="weighted", normalize=None):
+    from o3dheat import HeatKernel
+
+    return HeatKernel(site.spectrum(k=k, mass=mass), variant=variant, normalize=normalize)
+
+
+def times_of(kernel, times, scales):
+    """Explicit times, or the paper's ``scales`` count."""
+    if times:
+        return np.asarray(times, dtype=np.float64)
+    return kernel.scales(scales)

@@ -1,0 +1,66 @@
+"""The ``colorize`` filter: vertex colours from an attribute."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from o3dheat.errors import MeshError
+
+from ._common import Site
+
+
+@dataclass(frozen=True)
+class Colorize:
+    """Colour the vertices by one column of an attribute, with a matplotlib colormap.
+
+    The only filter that writes colours (``colors``, float32 in [0, 1]).
+
+    Parameters
+    ----------
+    attribute : str
+        The field.
+    column : int or None
+        One column of a multi-column attribute (default: the last one).
+    colormap : str
+        Any matplotlib colormap name ("coolwarm", "viridis", ...).
+    range : list of 2 float or None
+        Values mapped to the two ends; default the 2nd and 98th percentiles (robust to outliers).
+    output : str
+        The colour attribute.
+
+    Examples
+    --------
+    >>> import open3d as o3d, o3dheat.filters as flt
+    >>> m = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10), "scalar", kind="height")
+    >>> flt.apply(m, "colorize", attribute="height").vertex["colors"].shape
+    SizeVector[182, 3]
+    """
+
+    attribute: str = "height"
+    column: int | None = None
+    colormap: str = "coolwarm"
+    range: tuple[float, ...] | None = None
+    output: str = "colors"
+
+    outputs = ("colors",)
+
+    def __post_init__(self):
+        if self.range is not None and (len(self.range) != 2 or not self.range[0] < self.range[1]):
+            raise MeshError(f"range must be two increasing numbers, got {self.range}")
+
+    def __call__(self, geometry):
+        from matplotlib import colormaps
+
+        if self.colormap not in colormaps:
+            raise MeshError(f"unknown colormap {self.colormap!r} (matplotlib names: viridis, coolwarm, ...)")
+        site = Site(geometry)
+        f = site.attribute(self.attribute)
+        if f.ndim == 2 or self.column is not None:
+            f = site.attribute(self.attribute, -1 if self.column is None else self.column)
+        lo, hi = self.range if self.range is not None else np.percentile(f, [2, 98])
+        s = np.clip((f - lo) / (hi - lo), 0, 1) if hi > lo else np.full(f.shape, 0.5)
+        rgb = colormaps[self.colormap](s)[:, :3].astype(np.float32)
+        site.set(self.output, rgb)
+        return site.result()

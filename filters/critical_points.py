@@ -1,0 +1,78 @@
+"""The ``critical_points`` filter: PL critical points of an attribute."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from o3dheat.errors import MeshError
+
+from ._common import Site
+
+
+@dataclass(frozen=True)
+class CriticalPointsFilter:
+    """Label the PL critical points of an attribute -> ``<attribute>_critical`` int8 per vertex:
+    0 regular, 1 minimum, 2 saddle, 3 maximum.
+
+    Parameters
+    ----------
+    attribute : str
+        The field.
+    column : int or None
+        One column of a multi-column attribute (for example a scale of ``*_smooth``).
+    delta : float or None
+        Keep only the critical points of the δ-simplification (persistence >= delta, units of
+        the field) and the essential ones; the others are labelled 0.
+    keep_fraction : float or None
+        Alternative to delta: the most persistent fraction of the pairs.
+    output : str or None
+        Default "<attribute>_critical".
+    operators : {"reconstruct", "robust"}
+        For point clouds (only "reconstruct": critical points need a surface).
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat.filters as flt
+    >>> m = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20), "scalar", kind="height")
+    >>> np.bincount(flt.apply(m, "critical_points", attribute="height").vertex["height_critical"].numpy())
+    array([760,   1,   0,   1])
+    """
+
+    attribute: str = "height"
+    column: int | None = None
+    delta: float | None = None
+    keep_fraction: float | None = None
+    output: str | None = None
+    operators: Literal["reconstruct", "robust"] = "reconstruct"
+
+    outputs = ("<attribute>_critical",)
+
+    def __post_init__(self):
+        if self.delta is not None and self.keep_fraction is not None:
+            raise MeshError("give delta or keep_fraction, not both")
+
+    def __call__(self, geometry):
+        import o3dheat
+
+        site = Site(geometry, self.operators)
+        f = site.scalar(self.attribute, self.column)
+        V, F = site.surface()
+        g = site.to_surface(f)
+        kind = o3dheat.critical_points((V, F), g).kind
+        if self.delta is not None or self.keep_fraction is not None:
+            keep = o3dheat.simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)
+            mask = np.zeros(len(kind), bool)
+            mask[keep] = True
+            kind[~mask] = 0
+        if not site.is_mesh:  # each surface label goes to its nearest point
+            from o3dheat.sampling import nearest
+
+            out = np.zeros(site.n, np.int8)
+            crit = np.flatnonzero(kind)
+            out[nearest(np.arange(site.n), site.P, V[crit])] = kind[crit]
+            kind = out
+        site.set(self.output or f"{self.attribute}_critical", kind.astype(np.int8))
+        return site.result()

@@ -1,0 +1,474 @@
+"""Filters: the protocol, the registry and chains.
+
+A filter is a small frozen dataclass whose typed fields are its parameters. Calling it on a mesh
+returns a **new** ``o3d.t.geometry.TriangleMesh`` with every attribute of the input kept and its
+own outputs added (the input is never changed); point clouds give point clouds (see
+:mod:`o3dheat.geometry`). Filters are found through the entry-point group ``o3dheat.filters``,
+lazily: o3dheat's own (the ``o3dheat_filters`` package) are registered there exactly like a
+third-party plugin would be::
+
+    # pyproject.toml of a plugin
+    [project.entry-points."o3dheat.filters"]
+    my_filter = "my_package.my_module:MyFilter"
+
+A chain is a list of configured filters; it can be saved to and loaded from a TOML file::
+
+    [[filter]]
+    name = "scalar"
+    kind = "height"
+
+    [[filter]]
+    name = "heat_smooth"
+    attribute = "height"
+
+All filters of a chain, and of a Python session, share one spectrum per mesh and solver
+settings (:func:`shared_spectrum`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import re
+import sys
+import typing
+from collections import OrderedDict
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+from .errors import MeshError
+
+__all__ = ["GROUP", "names", "describe", "get", "apply", "Chain", "Parameter", "shared_spectrum",
+           "parse_value"]
+
+GROUP = "o3dheat.filters"
+
+_EPS: dict | None = None
+_CLASSES: dict = {}
+
+
+def _entry_points():
+    global _EPS
+    if _EPS is None:
+        eps = metadata.entry_points(group=GROUP)
+        _EPS = {ep.name: ep for ep in sorted(eps, key=lambda e: e.name)}
+    return _EPS
+
+
+def refresh():
+    """Forget the discovered filters (after installing a plugin in a running session)."""
+    global _EPS
+    import importlib
+
+    _EPS = None
+    _CLASSES.clear()
+    importlib.invalidate_caches()
+
+
+def names():
+    """Names of every installed filter, sorted.
+
+    Examples
+    --------
+    >>> import o3dheat.filters as flt
+    >>> {"heat_smooth", "hks", "colorize"} <= set(flt.names())
+    True
+    """
+    return list(_entry_points())
+
+
+def _class(name):
+    if name in _CLASSES:
+        return _CLASSES[name]
+    eps = _entry_points()
+    if name not in eps:
+        close = [n for n in eps if n.startswith(name[:3])]
+        hint = f" (did you mean {', '.join(close)}?)" if close else ""
+        raise MeshError(f"unknown filter {name!r}{hint}; installed: {', '.join(eps) or 'none'}")
+    try:
+        cls = eps[name].load()
+    except Exception as e:
+        raise MeshError(f"filter {name!r} could not be loaded from {eps[name].value}: {e}") from e
+    if not (dataclasses.is_dataclass(cls) and callable(cls)):
+        raise MeshError(f"filter {name!r} ({eps[name].value}) is not a dataclass filter")
+    _CLASSES[name] = cls
+    return cls
+
+
+@dataclasses.dataclass(frozen=True)
+class Parameter:
+    """One parameter of a filter: name, type (as text), default and help (from the docstring)."""
+
+    name: str
+    type: str
+    default: typing.Any
+    help: str
+
+    def __str__(self):
+        return f"{self.name} ({self.type}, default {self.default!r}): {self.help}"
+
+
+def _doc_params(doc):
+    """Parameter help from a numpydoc "Parameters" section: {name: text}."""
+    lines = (doc or "").splitlines()
+    try:
+        start = next(i for i, ln in enumerate(lines) if ln.strip() == "Parameters")
+    except StopIteration:
+        return {}
+    out, name = {}, None
+    for ln in lines[start + 2:]:
+        if ln.strip() and set(ln.strip()) == {"-"}:  # the next section's underline
+            if name:
+                out[name].pop()  # that section's title
+            break
+        m = re.match(r"^\s{4}(\w+)\s*:", ln)
+        if m:
+            name = m.group(1)
+            out[name] = []
+        elif name and ln.strip():
+            out[name].append(ln.strip())
+    return {k: " ".join(v) for k, v in out.items()}
+
+
+def _type_text(tp):
+    if tp in (int, float, str, bool):
+        return tp.__name__
+    return str(tp).replace("typing.", "")
+
+
+def _hints(cls):
+    return typing.get_type_hints(cls, globalns=vars(sys.modules[cls.__module__]))
+
+
+def describe(name):
+    """What a filter does and its parameters.
+
+    Returns
+    -------
+    dict
+        ``name``, ``summary`` (first docstring line), ``doc`` (whole docstring), ``outputs``
+        (attribute names it writes, when declared) and ``parameters`` (list of
+        :class:`Parameter`).
+
+    Examples
+    --------
+    >>> import o3dheat.filters as flt
+    >>> [p.name for p in flt.describe("hks")["parameters"]][:2]
+    ['scales', 'times']
+    """
+    cls = _class(name)
+    doc = cls.__doc__ or ""
+    helps = _doc_params(doc)
+    hints = _hints(cls)
+    params = []
+    for f in dataclasses.fields(cls):
+        default = f.default if f.default is not dataclasses.MISSING else (
+            f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+        params.append(Parameter(f.name, _type_text(hints.get(f.name, typing.Any)), default, helps.get(f.name, "")))
+    summary = doc.strip().splitlines()[0] if doc.strip() else ""
+    return {"name": name, "summary": summary, "doc": doc, "parameters": params,
+            "outputs": getattr(cls, "outputs", None)}
+
+
+# ------------------------------------------------------------------------------- parameters
+def _check(tp, value, where):
+    """``value`` checked (and converted where lossless) against the annotation ``tp``."""
+    origin = typing.get_origin(tp)
+    args = typing.get_args(tp)
+    if tp is typing.Any:
+        return value
+    if origin is typing.Union or (sys.version_info >= (3, 10) and origin is __import__("types").UnionType):
+        if value is None and type(None) in args:
+            return None
+        errors = []
+        for a in args:
+            if a is type(None):
+                continue
+            try:
+                return _check(a, value, where)
+            except MeshError as e:
+                errors.append(str(e))
+        raise MeshError(errors[0] if errors else f"{where}: bad value {value!r}")
+    if origin is typing.Literal:
+        if value not in args:
+            raise MeshError(f"{where} must be one of {', '.join(map(repr, args))}, got {value!r}")
+        return value
+    if origin in (tuple, list):
+        if isinstance(value, (str, bytes)) or not isinstance(value, (tuple, list, np.ndarray)):
+            raise MeshError(f"{where} must be a list, got {value!r}")
+        item = args[0] if args else typing.Any
+        return tuple(_check(item, v, where) for v in value)
+    if tp is bool:
+        if isinstance(value, (bool, np.bool_)):
+            return bool(value)
+        raise MeshError(f"{where} must be true or false, got {value!r}")
+    if tp is int:
+        if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+            return int(value)
+        raise MeshError(f"{where} must be an integer, got {value!r}")
+    if tp is float:
+        if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+            v = float(value)
+            if not np.isfinite(v):
+                raise MeshError(f"{where} must be a finite number, got {value!r}")
+            return v
+        raise MeshError(f"{where} must be a number, got {value!r}")
+    if tp is str:
+        if isinstance(value, str):
+            return value
+        raise MeshError(f"{where} must be text, got {value!r}")
+    return value
+
+
+def parse_value(text, tp):
+    """A parameter value from command-line text, for the annotation ``tp``.
+
+    Lists are comma- or semicolon-free here: the command separates list items with ``;`` or
+    ``+`` (``times=0.1+0.2``); ``none`` is None; ``true``/``false`` are booleans.
+
+    Examples
+    --------
+    >>> from o3dheat.filters import parse_value
+    >>> parse_value("0.5+1", tuple[float, ...]), parse_value("3", int), parse_value("none", int | None)
+    ((0.5, 1.0), 3, None)
+    """
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    low = text.strip().lower()
+    if origin is typing.Union or (sys.version_info >= (3, 10) and origin is __import__("types").UnionType):
+        if low in ("none", "null", "") and type(None) in args:
+            return None
+        for a in args:
+            if a is type(None):
+                continue
+            try:
+                return parse_value(text, a)
+            except (ValueError, MeshError):
+                continue
+        raise MeshError(f"cannot read {text!r} as {_type_text(tp)}")
+    if origin in (tuple, list):
+        item = args[0] if args else str
+        return tuple(parse_value(t, item) for t in re.split(r"[+;]", text) if t.strip())
+    if origin is typing.Literal:
+        return text
+    if tp is bool:
+        if low in ("true", "yes", "1", "on"):
+            return True
+        if low in ("false", "no", "0", "off"):
+            return False
+        raise MeshError(f"cannot read {text!r} as true/false")
+    if tp is int:
+        try:
+            return int(text)
+        except ValueError:
+            raise MeshError(f"cannot read {text!r} as an integer") from None
+    if tp is float:
+        try:
+            return float(text)
+        except ValueError:
+            raise MeshError(f"cannot read {text!r} as a number") from None
+    return text
+
+
+def get(name, **params):
+    """A configured filter.
+
+    Parameters
+    ----------
+    name : str
+        A name from :func:`names`.
+    **params
+        Parameters (see :func:`describe`); unknown names and wrong types raise MeshError.
+
+    Returns
+    -------
+    The filter instance: ``filter(mesh) -> new mesh``.
+
+    Examples
+    --------
+    >>> import o3dheat.filters as flt
+    >>> flt.get("colorize", attribute="hks", column=3)
+    Colorize(attribute='hks', column=3, colormap='coolwarm', range=None, output='colors')
+    """
+    cls = _class(name)
+    hints = _hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(params) - set(fields))
+    if unknown:
+        raise MeshError(f"filter {name!r} has no parameter {', '.join(map(repr, unknown))}; "
+                        f"its parameters: {', '.join(fields)}")
+    checked = {k: _check(hints.get(k, typing.Any), v, f"{name}.{k}") for k, v in params.items()}
+    try:
+        return cls(**checked)
+    except TypeError as e:
+        raise MeshError(f"filter {name!r}: {e}") from e
+
+
+def apply(mesh, name, **params):
+    """Run one filter: ``get(name, **params)(mesh)``.
+
+    Examples
+    --------
+    >>> import open3d as o3d, o3dheat.filters as flt
+    >>> out = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10), "hks", k=20)
+    >>> out.vertex["hks"].shape
+    SizeVector[182, 10]
+    """
+    return get(name, **params)(mesh)
+
+
+def _name_of(flt):
+    cls = type(flt)
+    for n, ep in _entry_points().items():
+        if _CLASSES.get(n) is cls or ep.value == f"{cls.__module__}:{cls.__qualname__}":
+            return n
+    return getattr(cls, "name", cls.__name__)
+
+
+class Chain:
+    """A list of configured filters run one after the other.
+
+    Parameters
+    ----------
+    steps : iterable of filters or of ``(name, params)`` pairs
+
+    Examples
+    --------
+    >>> import open3d as o3d, o3dheat.filters as flt
+    >>> chain = flt.Chain([("scalar", {"kind": "height"}), ("heat_smooth", {"attribute": "height", "k": 20}),
+    ...                    ("colorize", {"attribute": "height_smooth", "column": 4})])
+    >>> out = chain(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10))
+    >>> sorted(k for k in out.vertex)
+    ['colors', 'height', 'height_smooth', 'positions']
+    """
+
+    def __init__(self, steps=()):
+        self.steps = []
+        for s in steps:
+            self.append(s)
+
+    def append(self, step, **params):
+        """Add a filter (an instance, a name with params, or a (name, params) pair)."""
+        if isinstance(step, str):
+            step = get(step, **params)
+        elif isinstance(step, (tuple, list)) and len(step) == 2 and isinstance(step[0], str):
+            step = get(step[0], **dict(step[1]))
+        elif not (dataclasses.is_dataclass(step) and callable(step)):
+            raise MeshError(f"a chain step must be a filter or (name, params), got {step!r}")
+        self.steps.append(step)
+        return self
+
+    def __len__(self):
+        return len(self.steps)
+
+    def __iter__(self):
+        return iter(self.steps)
+
+    def __repr__(self):
+        return "Chain([" + ", ".join(map(repr, self.steps)) + "])"
+
+    def __call__(self, mesh, progress=None):
+        """Run every step on the result of the previous one; ``progress(i, step)`` is called first."""
+        for i, step in enumerate(self.steps):
+            if progress:
+                progress(i, step)
+            mesh = step(mesh)
+        return mesh
+
+    def to_dict(self):
+        return {"filter": [{"name": _name_of(s), **_plain(dataclasses.asdict(s))} for s in self.steps]}
+
+    def save(self, path):
+        """Write the chain as TOML (atomically)."""
+        from .io import atomic_write_text
+
+        atomic_write_text(path, _to_toml(self.to_dict()))
+
+    @classmethod
+    def load(cls, path):
+        """Read a chain from a TOML file (``[[filter]]`` tables with ``name`` and parameters)."""
+        try:
+            import tomllib
+        except ImportError:  # pragma: no cover - Python 3.10
+            import tomli as tomllib
+        path = Path(path)
+        try:
+            data = tomllib.loads(path.read_text())
+        except OSError as e:
+            raise MeshError(f"cannot read chain {path}: {e.strerror}") from e
+        except tomllib.TOMLDecodeError as e:
+            raise MeshError(f"{path}: not valid TOML ({e})") from e
+        steps = data.get("filter")
+        if not isinstance(steps, list) or not all(isinstance(s, dict) and "name" in s for s in steps):
+            raise MeshError(f"{path}: expected [[filter]] tables, each with a name")
+        chain = cls()
+        for s in steps:
+            s = dict(s)
+            chain.append(s.pop("name"), **s)
+        return chain
+
+
+def _plain(d):
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items() if v is not None}
+
+
+def _to_toml(data):
+    def val(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, (int, float)):
+            return repr(v)
+        if isinstance(v, str):
+            return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        if isinstance(v, (list, tuple)):
+            return "[" + ", ".join(val(x) for x in v) + "]"
+        raise MeshError(f"cannot write {v!r} to TOML")
+
+    out = ["# o3dheat filter chain: o3dheat apply IN OUT --chain this.toml"]
+    for step in data["filter"]:
+        out.append("\n[[filter]]")
+        out += [f"{k} = {val(v)}" for k, v in step.items()]
+    return "\n".join(out) + "\n"
+
+
+# ------------------------------------------------------------------------ the shared spectrum
+_SPECTRA: OrderedDict = OrderedDict()
+_MAX_SPECTRA = 8
+
+
+def shared_spectrum(V, F, k=100, mass="consistent", cache=None):
+    """The spectrum of ``(V, F)``, computed once per geometry and settings and then shared.
+
+    Filters ask for their spectrum here; a chain that smooths, computes HKS and approximates on
+    one mesh solves the eigenproblem once. The in-memory cache keeps the last 8 spectra; ``cache``
+    (a folder, or True for the default) adds :func:`o3dheat.eigensolve`'s on-disk cache.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 ndarray
+    F : (m, 3) int ndarray
+    k : int
+        Eigenpairs (capped at the number of vertices).
+    mass : str
+    cache : None, bool, str or Path
+
+    Returns
+    -------
+    Spectrum
+    """
+    from .spectrum import eigensolve
+
+    k = min(int(k), len(V))
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(V, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(F, dtype=np.int64).tobytes())
+    key = (h.hexdigest(), k, mass)
+    if key in _SPECTRA:
+        _SPECTRA.move_to_end(key)
+        return _SPECTRA[key]
+    spec = eigensolve((V, F), k=k, mass=mass, cache=cache)
+    _SPECTRA[key] = spec
+    while len(_SPECTRA) > _MAX_SPECTRA:
+        _SPECTRA.popitem(last=False)
+    return spec
