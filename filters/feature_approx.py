@@ -30,6 +30,7 @@ class FeatureApprox:
     keep_fraction : float or None
         Alternative to delta. With neither, every critical point is a feature.
     variant : {"weighted", "linear", "voronoi"}
+        The kernel (weighted = the paper's).
     k : int
         Eigenpairs.
     operators : {"reconstruct", "robust"}

@@ -28,6 +28,7 @@ class Hks:
     k : int
         Eigenpairs.
     mass : {"consistent", "lumped", "identity"}
+        Mass matrix of the eigenproblem.
     output : str
         Attribute name.
     operators : {"reconstruct", "robust"}

@@ -28,6 +28,7 @@ settings (:func:`shared_spectrum`).
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import hashlib
 import re
 import sys
@@ -84,7 +85,7 @@ def _class(name):
         return _CLASSES[name]
     eps = _entry_points()
     if name not in eps:
-        close = [n for n in eps if n.startswith(name[:3])]
+        close = difflib.get_close_matches(name, list(eps), n=3, cutoff=0.6)
         hint = f" (did you mean {', '.join(close)}?)" if close else ""
         raise MeshError(f"unknown filter {name!r}{hint}; installed: {', '.join(eps) or 'none'}")
     try:

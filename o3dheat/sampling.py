@@ -38,7 +38,7 @@ def point_arrays(cloud):
     return P, N
 
 
-def reconstruct(cloud, method="poisson", depth=8, neighbours=30):
+def reconstruct(cloud, method="poisson", depth=8, neighbours=30, trim=0.0):
     """A triangle mesh through a point cloud.
 
     Parameters
@@ -47,12 +47,15 @@ def reconstruct(cloud, method="poisson", depth=8, neighbours=30):
         Normals are estimated (``neighbours`` nearest points) and oriented consistently when
         missing.
     method : {"poisson", "ball_pivoting"}
-        Screened Poisson (watertight, new vertices; the density-poor 1% of them are removed) or
-        ball pivoting (the points themselves as vertices, radii from the mean spacing).
+        Screened Poisson (watertight, new vertices) or ball pivoting (the points themselves as
+        vertices, radii from the mean spacing).
     depth : int
         Octree depth of the Poisson reconstruction.
     neighbours : int
         Neighbours for the normal estimation and orientation.
+    trim : float
+        Poisson only: remove this fraction of the vertices with the lowest sample density (the
+        surface Poisson invents far from the points, for open scans); 0 keeps a closed surface.
 
     Returns
     -------
@@ -88,8 +91,9 @@ def reconstruct(cloud, method="poisson", depth=8, neighbours=30):
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
         if method == "poisson":
             mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=depth)
-            dens = np.asarray(dens)
-            mesh.remove_vertices_by_mask(dens < np.quantile(dens, 0.01))
+            if trim > 0:
+                dens = np.asarray(dens)
+                mesh.remove_vertices_by_mask(dens < np.quantile(dens, trim))
         else:
             spacing = float(np.mean(pcd.compute_nearest_neighbor_distance()))
             radii = o3d.utility.DoubleVector([1.5 * spacing, 3 * spacing, 6 * spacing])

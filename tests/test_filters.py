@@ -1,0 +1,279 @@
+"""Filters: registry, built-in filters, chains, plugins, point clouds (issue 5)."""
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import open3d as o3d
+import pytest
+from conftest import icosphere, torus
+
+import o3dheat
+import o3dheat.filters as flt
+from o3dheat.fem import voronoi_areas
+
+BUILTIN = ["colorize", "critical_points", "feature_approx", "heat_smooth", "hks", "scalar"]
+
+
+def tmesh(V, F, **attrs):
+    m = o3d.t.geometry.TriangleMesh()
+    m.vertex.positions = o3d.core.Tensor(np.asarray(V, np.float64))
+    m.triangle.indices = o3d.core.Tensor(np.asarray(F, np.int64))
+    for k, v in attrs.items():
+        m.vertex[k] = o3d.core.Tensor(np.ascontiguousarray(v))
+    return m
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    V, F = icosphere(3)
+    return tmesh(V, F, height=V[:, 2].copy())
+
+
+def sphere_points(n=4000, seed=0):
+    P = np.random.default_rng(seed).standard_normal((n, 3))
+    return P / np.linalg.norm(P, axis=1)[:, None]
+
+
+# ---------------------------------------------------------------------------------- registry
+def test_builtins_are_registered_and_described():
+    assert set(BUILTIN) <= set(flt.names())
+    for name in BUILTIN:
+        d = flt.describe(name)
+        assert d["summary"] and d["parameters"]
+        for p in d["parameters"]:
+            assert p.help, f"{name}.{p.name} has no help"
+            assert p.type and str(p)
+
+
+def test_get_checks_names_and_parameters():
+    with pytest.raises(o3dheat.MeshError, match="unknown filter 'hkz'.*did you mean hks"):
+        flt.get("hkz")
+    with pytest.raises(o3dheat.MeshError, match="no parameter 'kk'"):
+        flt.get("hks", kk=3)
+    with pytest.raises(o3dheat.MeshError, match="integer"):
+        flt.get("hks", k="many")
+    with pytest.raises(o3dheat.MeshError, match="one of"):
+        flt.get("hks", form="other")
+    with pytest.raises(o3dheat.MeshError, match="axis"):
+        flt.get("scalar", axis=5)
+    assert flt.get("heat_smooth", times=[0.1, 0.2]).times == (0.1, 0.2)
+    assert flt.get("hks", normalize=None).normalize is None
+
+
+def test_parse_value_reads_command_line_text():
+    import typing
+
+    assert flt.parse_value("1e-3+0.5", tuple[float, ...]) == (1e-3, 0.5)
+    assert flt.parse_value("none", typing.Optional[float]) is None
+    assert flt.parse_value("true", bool) is True
+    with pytest.raises(o3dheat.MeshError):
+        flt.parse_value("x", int)
+
+
+# --------------------------------------------------------------------------- built-in filters
+def test_filters_keep_attributes_and_never_mutate(sphere):
+    m = sphere.clone()
+    n = len(m.vertex.positions)
+    m.vertex["extra"] = o3d.core.Tensor(np.arange(2 * n, dtype=np.int32).reshape(n, 2))
+    m.vertex.colors = o3d.core.Tensor(np.full((n, 3), 0.25, np.float32))
+    before = sorted(k for k in m.vertex)
+    for name, params in [("scalar", {"kind": "mean_curvature"}), ("heat_smooth", {"k": 20}), ("hks", {"k": 20}),
+                         ("critical_points", {}), ("feature_approx", {"k": 20}), ("colorize", {})]:
+        out = flt.apply(m, name, **params)
+        assert isinstance(out, o3d.t.geometry.TriangleMesh) and out is not m
+        assert sorted(k for k in m.vertex) == before  # the input is unchanged
+        assert set(before) <= {k for k in out.vertex}
+        assert np.array_equal(out.vertex["extra"].numpy(), m.vertex["extra"].numpy())
+    legacy = flt.apply(m.to_legacy(), "scalar")
+    assert isinstance(legacy, o3d.t.geometry.TriangleMesh) and "height" in legacy.vertex
+
+
+def test_scalar_fields():
+    V, F = icosphere(4, radius=2.0)
+    m = tmesh(V, F)
+    H = flt.apply(m, "scalar", kind="mean_curvature").vertex["mean_curvature"].numpy()
+    K = flt.apply(m, "scalar", kind="gaussian_curvature").vertex["gaussian_curvature"].numpy()
+    assert np.allclose(H, 0.5, rtol=0.02) and np.allclose(K, 0.25, rtol=0.05)
+    Vt, Ft = torus()
+    Kt = flt.apply(tmesh(Vt, Ft), "scalar", kind="gaussian_curvature").vertex["gaussian_curvature"].numpy()
+    assert abs(Kt @ voronoi_areas(Vt, Ft)) < 1e-9  # Gauss-Bonnet: 2π χ = 0
+    h = flt.apply(m, "scalar", kind="height", axis=0).vertex["height"].numpy()
+    assert np.array_equal(h, V[:, 0])
+    a = flt.apply(m, "scalar", kind="height")
+    n1 = flt.apply(a, "scalar", kind="noise", attribute="height", sigma=0.1, seed=3).vertex["height_noisy"].numpy()
+    n2 = flt.apply(a, "scalar", kind="noise", attribute="height", sigma=0.1, seed=3).vertex["height_noisy"].numpy()
+    assert np.array_equal(n1, n2) and abs(np.std(n1 - V[:, 2]) - 0.1 * 4.0) < 0.03
+    with pytest.raises(o3dheat.MeshError, match="needs attribute"):
+        flt.get("scalar", kind="noise")
+    with pytest.raises(o3dheat.MeshError, match="no vertex attribute 'nope'"):
+        flt.apply(m, "scalar", kind="noise", attribute="nope")
+
+
+def test_heat_smooth_and_hks_match_the_kernel(sphere):
+    V, F = (sphere.vertex.positions.numpy(), sphere.triangle.indices.numpy())
+    K = o3dheat.HeatKernel(o3dheat.eigensolve((V, F), k=30))
+    f = V[:, 2]
+    out = flt.apply(sphere, "heat_smooth", attribute="height", k=30)
+    assert np.allclose(out.vertex["height_smooth"].numpy(), K.smooth(f, K.scales()))
+    one = flt.apply(sphere, "heat_smooth", attribute="height", k=30, times=[0.01], output="s")
+    assert np.allclose(one.vertex["s"].numpy(), K.smooth(f, 0.01))
+    col = flt.apply(out, "heat_smooth", attribute="height_smooth", column=2, k=30, times=[0.01, 0.02])
+    assert np.allclose(col.vertex["height_smooth_smooth"].numpy(), K.smooth(K.smooth(f, K.scales())[:, 2], [0.01, 0.02]))
+    with pytest.raises(o3dheat.MeshError, match="columns"):
+        flt.apply(out, "heat_smooth", attribute="height_smooth", k=30)
+    with pytest.raises(o3dheat.MeshError, match="column 12 does not exist"):
+        flt.apply(out, "heat_smooth", attribute="height_smooth", column=12, k=30)
+    h = flt.apply(sphere, "hks", k=30, form="paper").vertex["hks"].numpy()
+    assert np.allclose(h, K.hks(K.scales(), form="paper"))
+
+
+def test_topology_filters(sphere):
+    V, F = sphere.vertex.positions.numpy(), sphere.triangle.indices.numpy()
+    f = V[:, 2] + 0.05 * np.random.default_rng(0).standard_normal(len(V))
+    m = tmesh(V, F, f=f)
+    lab = flt.apply(m, "critical_points", attribute="f").vertex["f_critical"].numpy()
+    cp = o3dheat.critical_points((V, F), f)
+    assert lab.dtype == np.int8 and np.array_equal(lab, cp.kind)
+    few = flt.apply(m, "critical_points", attribute="f", delta=0.5).vertex["f_critical"].numpy()
+    assert np.count_nonzero(few) < np.count_nonzero(lab) and np.count_nonzero(few) >= 2
+    out = flt.apply(m, "feature_approx", attribute="f", k=30, keep_fraction=0.3, scale=2)
+    K = o3dheat.HeatKernel(o3dheat.eigensolve((V, F), k=30))
+    A = o3dheat.simplify_critical_points((V, F), f, keep_fraction=0.3)
+    g, loc = o3dheat.feature_driven(K, f, A, K.scales()[1])
+    assert np.allclose(out.vertex["f_glob"].numpy(), g) and np.allclose(out.vertex["f_loc"].numpy(), loc)
+
+
+def test_colorize(sphere):
+    out = flt.apply(sphere, "colorize", attribute="height", colormap="viridis", range=[-1.0, 1.0])
+    c = out.vertex["colors"].numpy()
+    assert c.dtype == np.float32 and c.shape == (len(c), 3) and 0 <= c.min() and c.max() <= 1
+    assert np.unique(c, axis=0).shape[0] > 50  # a ramp, not one colour
+    with pytest.raises(o3dheat.MeshError, match="colormap"):
+        flt.apply(sphere, "colorize", colormap="nope")
+    with pytest.raises(o3dheat.MeshError, match="range"):
+        flt.get("colorize", range=[1.0, 0.0])
+
+
+def test_a_chain_solves_the_eigenproblem_once(sphere, monkeypatch):
+    import o3dheat.spectrum as spectrum
+
+    flt._SPECTRA.clear()
+    calls = []
+    real = spectrum.eigensolve
+    monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: calls.append(1) or real(*a, **k))
+    chain = flt.Chain([("heat_smooth", {"k": 25}), ("hks", {"k": 25}), ("feature_approx", {"k": 25}),
+                       ("colorize", {"attribute": "height_smooth"})])
+    out = chain(sphere)
+    assert len(calls) == 1
+    assert {"height_smooth", "hks", "height_glob", "height_loc", "colors"} <= {k for k in out.vertex}
+
+
+def test_chain_toml_round_trip(sphere, tmp_path):
+    chain = flt.Chain().append("scalar", kind="noise", attribute="height", sigma=0.1)
+    chain.append(flt.get("heat_smooth", attribute="height_noisy", times=[0.01, 0.02], k=20))
+    chain.append(("colorize", {"attribute": "height_noisy_smooth", "range": [-1.0, 1.0]}))
+    path = tmp_path / "chain.toml"
+    chain.save(path)
+    again = flt.Chain.load(path)
+    assert [repr(s) for s in again] == [repr(s) for s in chain]
+    a, b = chain(sphere), again(sphere)
+    assert np.array_equal(a.vertex["colors"].numpy(), b.vertex["colors"].numpy())
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[[filter]]\nname = 'hks'\nk = 'x'\n")
+    with pytest.raises(o3dheat.MeshError, match="integer"):
+        flt.Chain.load(bad)
+    bad.write_text("this is not toml = =")
+    with pytest.raises(o3dheat.MeshError, match="TOML"):
+        flt.Chain.load(bad)
+    with pytest.raises(o3dheat.MeshError, match="cannot read"):
+        flt.Chain.load(tmp_path / "missing.toml")
+
+
+def test_a_third_party_plugin_is_found(tmp_path, monkeypatch):
+    src = tmp_path / "src"
+    (src / "tiny_plugin").mkdir(parents=True)
+    (src / "tiny_plugin" / "__init__.py").write_text(textwrap.dedent('''
+        from dataclasses import dataclass
+        import numpy as np
+        import open3d as o3d
+
+        @dataclass(frozen=True)
+        class Double:
+            """Twice an attribute.
+
+            Parameters
+            ----------
+            attribute : str
+                The field.
+            """
+            attribute: str = "height"
+
+            def __call__(self, mesh):
+                out = mesh.clone()
+                out.vertex["double"] = o3d.core.Tensor(2 * mesh.vertex[self.attribute].numpy())
+                return out
+    '''))
+    (src / "pyproject.toml").write_text(textwrap.dedent('''
+        [build-system]
+        requires = ["setuptools"]
+        build-backend = "setuptools.build_meta"
+        [project]
+        name = "tiny-plugin"
+        version = "0.1"
+        [project.entry-points."o3dheat.filters"]
+        double = "tiny_plugin:Double"
+    '''))
+    target = tmp_path / "site"
+    r = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
+                        "--no-index", "--target", str(target), str(src)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    monkeypatch.syspath_prepend(str(target))
+    flt.refresh()
+    try:
+        assert "double" in flt.names()
+        assert flt.describe("double")["parameters"][0].help == "The field."
+        V, F = icosphere(1)
+        out = flt.apply(tmesh(V, F, height=V[:, 2].copy()), "double")
+        assert np.allclose(out.vertex["double"].numpy(), 2 * V[:, 2])
+    finally:
+        monkeypatch.undo()
+        flt.refresh()
+    assert "double" not in flt.names()
+
+
+# ------------------------------------------------------------------------------- point clouds
+@pytest.mark.parametrize("operators, tol", [("reconstruct", 0.02), ("robust", 0.1)])
+def test_point_cloud_spectrum_of_the_unit_sphere(operators, tol):
+    pytest.importorskip("robust_laplacian") if operators == "robust" else None
+    from o3dheat_filters._common import Site
+
+    pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(sphere_points()))
+    lam = Site(pc, operators).spectrum(k=16).eigenvalues
+    ref = np.array([2] * 3 + [6] * 5 + [12] * 7)
+    assert abs(lam[0]) < 1e-6 and np.allclose(lam[1:], ref, rtol=tol)
+
+
+@pytest.mark.parametrize("operators", ["reconstruct", "robust"])
+def test_filters_on_point_clouds(operators):
+    pytest.importorskip("robust_laplacian") if operators == "robust" else None
+    P = sphere_points(3000, seed=1)
+    for pc in (o3d.t.geometry.PointCloud(o3d.core.Tensor(P)),
+               o3d.geometry.PointCloud(o3d.utility.Vector3dVector(P))):
+        out = flt.Chain([("scalar", {"kind": "height", "operators": operators}),
+                         ("heat_smooth", {"k": 20, "operators": operators, "times": [0.05]}),
+                         ("hks", {"k": 20, "operators": operators, "scales": 3}),
+                         ("colorize", {"attribute": "hks"})])(pc)
+        assert isinstance(out, o3d.t.geometry.PointCloud)
+        s = out.point["height_smooth"].numpy()
+        # Φ_t of the height on the unit sphere: exp(-2 t / 2) z (an l = 1 harmonic)
+        assert np.corrcoef(s, P[:, 2])[0, 1] > 0.99
+        assert np.allclose(s, np.exp(-0.05) * P[:, 2], atol=0.05)
+        assert out.point["hks"].shape == (3000, 3)
+    if operators == "robust":
+        with pytest.raises(o3dheat.MeshError, match="surface"):
+            flt.apply(out, "critical_points", attribute="height", operators="robust")
+    else:
+        lab = flt.apply(out, "critical_points", attribute="height").point["height_critical"].numpy()
+        assert lab.shape == (3000,) and set(np.unique(lab)) <= {0, 1, 2, 3}
