@@ -1,35 +1,208 @@
-"""The ``o3dheat`` command."""
+"""The ``o3dheat`` command: ``info``, ``filters``, ``apply``, ``spectrum``, ``figure``, ``demo``.
+
+User errors (missing files, unknown filters or parameters, bad values) print one line starting
+with ``o3dheat: error:`` and exit with status 2; no traceback. ``-v`` logs what happens.
+"""
 
 from __future__ import annotations
 
 import argparse
 import logging
 import sys
+from pathlib import Path
 
 from .errors import MeshError, SolverError
 
 __all__ = ["main"]
 
 EXAMPLES = {
-    "demo": "examples:\n  o3dheat demo\n  o3dheat demo --out /tmp/bunny.ply -k 50",
-    "info": "examples:\n  o3dheat info mesh.ply",
+    "demo": """examples:
+  o3dheat demo
+  o3dheat demo --out /tmp/bunny.ply -k 50""",
+    "info": """examples:
+  o3dheat info mesh.ply""",
+    "filters": """examples:
+  o3dheat filters                 # list the installed filters
+  o3dheat filters heat_smooth     # its parameters, types, defaults and help""",
+    "apply": """examples:
+  o3dheat apply in.ply out.ply -f scalar:kind=height -f heat_smooth:attribute=height,k=100 \\
+      -f colorize:attribute=height_smooth,column=4
+  o3dheat apply in.ply out.ply -f hks:scales=16 --save-chain chain.toml
+  o3dheat apply other.obj other.ply --chain chain.toml
+
+parameters: -f NAME:key=value,key=value; list values with + (times=0.01+0.02+0.05);
+none/true/false are read as such. Outputs are .ply or .npz; the input is never overwritten
+unless --overwrite is given.""",
+    "spectrum": """examples:
+  o3dheat spectrum mesh.ply -k 200 -o spectrum.npz""",
+    "figure": """examples:
+  o3dheat figure mesh.ply -o figures/                 # noisy height field, the paper's figure kinds
+  o3dheat figure mesh.ply -o figures/ --attribute f -k 100""",
 }
 
 
+def _sub(sub, name, help_text):
+    return sub.add_parser(name, help=help_text, description=help_text, epilog=EXAMPLES[name],
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
 def _parser():
-    p = argparse.ArgumentParser(prog="o3dheat", description="Multi-scale heat-kernel analysis for Open3D meshes.")
+    p = argparse.ArgumentParser(prog="o3dheat", description="Multi-scale heat-kernel analysis for Open3D meshes.",
+                                epilog="run 'o3dheat COMMAND --help' for examples of each command")
     p.add_argument("-v", "--verbose", action="store_true", help="log what happens")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    d = sub.add_parser("demo", help="run the demo on the embedded bunny", epilog=EXAMPLES["demo"],
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    d = _sub(sub, "demo", "run the demo on the embedded bunny")
     d.add_argument("--out", default="o3dheat-demo/bunny_heat.ply", help="output PLY (default: %(default)s)")
     d.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
     d.add_argument("--reduction", type=float, default=0.6, help="decimation fraction (default: %(default)s)")
     d.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
-    i = sub.add_parser("info", help="check a mesh and report what matters to the FEM operators",
-                       epilog=EXAMPLES["info"], formatter_class=argparse.RawDescriptionHelpFormatter)
+    i = _sub(sub, "info", "check a mesh and report what matters to the FEM operators")
     i.add_argument("mesh", help="mesh file (PLY, OBJ, OFF, STL, ...)")
+    f = _sub(sub, "filters", "list the installed filters, or describe one")
+    f.add_argument("name", nargs="?", help="a filter name")
+    a = _sub(sub, "apply", "run a chain of filters on a mesh or point cloud and write the result")
+    a.add_argument("input", help="mesh or point cloud file (PLY, NPZ, OBJ, OFF, STL, PCD, ...)")
+    a.add_argument("output", help="output file (.ply or .npz)")
+    a.add_argument("-f", "--filter", action="append", default=[], metavar="NAME:key=value,...",
+                   help="a filter and its parameters (repeatable; run in order)")
+    a.add_argument("--chain", help="a TOML chain file (run before any -f)")
+    a.add_argument("--save-chain", metavar="TOML", help="also write the chain that was run")
+    a.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
+    a.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
+    s = _sub(sub, "spectrum", "compute the smallest eigenpairs of a mesh and save them")
+    s.add_argument("input", help="mesh file")
+    s.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
+    s.add_argument("--mass", default="consistent", choices=["consistent", "lumped", "identity"])
+    s.add_argument("-o", "--out", required=True, help="output .npz (eigenvalues, eigenvectors, residuals)")
+    s.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
+    g = _sub(sub, "figure", "draw the paper's kinds of figures (Figs. 1-7) for a mesh")
+    g.add_argument("input", help="mesh file")
+    g.add_argument("-o", "--out", required=True, help="output folder (created)")
+    g.add_argument("--attribute", help="vertex attribute to study (default: height + noise)")
+    g.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
+    g.add_argument("--noise", type=float, default=0.1, help="noise added to the height, relative (default: %(default)s)")
+    g.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
     return p
+
+
+def _parse_filter(text):
+    """'name:key=value,key=value' -> (name, {key: value parsed by the filter's types})."""
+    import typing
+
+    from . import filters as flt
+
+    name, _, rest = text.partition(":")
+    name = name.strip()
+    cls = flt._class(name)
+    hints = flt._hints(cls)
+    params = {}
+    for item in filter(None, (s.strip() for s in rest.split(","))):
+        key, eq, value = item.partition("=")
+        key = key.strip()
+        if not eq:
+            raise MeshError(f"-f {text!r}: expected key=value, got {item!r}")
+        if key not in hints:
+            fields = ", ".join(p.name for p in flt.describe(name)["parameters"])
+            raise MeshError(f"filter {name!r} has no parameter {key!r}; its parameters: {fields}")
+        params[key] = flt.parse_value(value, hints.get(key, typing.Any))
+    return name, params
+
+
+def _progress(total):
+    """A callback drawing a tqdm bar over the chain steps when attached to a terminal."""
+    if not sys.stderr.isatty():
+        return None, lambda: None
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, unit="filter", file=sys.stderr)
+
+    def step(i, flt_obj):
+        bar.set_description(type(flt_obj).__name__)
+        if i:
+            bar.update(1)
+
+    def close():
+        bar.update(bar.total - bar.n)
+        bar.close()
+
+    return step, close
+
+
+def _apply(args):
+    from . import filters as flt
+    from .io import read_geometry, write_geometry
+
+    src, dst = Path(args.input), Path(args.output)
+    if dst.suffix.lower() not in (".ply", ".npz"):
+        raise MeshError(f"the output must end in .ply or .npz: {dst}")
+    if src.exists() and dst.exists() and src.resolve() == dst.resolve() and not args.overwrite:
+        raise MeshError(f"refusing to overwrite the input {src}: choose another output or add --overwrite")
+    if dst.exists() and not args.overwrite:
+        raise MeshError(f"{dst} exists: add --overwrite to replace it")
+    chain = flt.Chain.load(args.chain) if args.chain else flt.Chain()
+    for text in args.filter:
+        name, params = _parse_filter(text)
+        chain.append(name, **params)
+    if not len(chain):
+        raise MeshError("no filter given: use -f NAME:key=value or --chain FILE (o3dheat filters lists them)")
+    geometry = read_geometry(src)
+    step, close = _progress(len(chain))
+    out = chain(geometry, progress=step)
+    close()
+    write_geometry(dst, out, binary=not args.ascii, overwrite=True)
+    if args.save_chain:
+        chain.save(args.save_chain)
+    attrs = out.vertex if hasattr(out, "vertex") else out.point
+    print(f"wrote {dst}: " + ", ".join(f"{k} {tuple(attrs[k].shape)}" for k in attrs))
+
+
+def _filters(args):
+    from . import filters as flt
+
+    if not args.name:
+        for name in flt.names():
+            print(f"{name:<18} {flt.describe(name)['summary']}")
+        return
+    d = flt.describe(args.name)
+    print(f"{d['name']}: {d['summary']}\n\nparameters:")
+    for p in d["parameters"]:
+        print(f"  {p.name} ({p.type}, default {p.default!r})\n      {p.help}")
+
+
+def _spectrum(args):
+    import numpy as np
+
+    from .io import atomic_write, read_mesh
+    from .spectrum import eigensolve
+
+    out = Path(args.out)
+    if out.suffix.lower() != ".npz":
+        raise MeshError(f"the spectrum is written as .npz: {out}")
+    if out.exists() and not args.overwrite:
+        raise MeshError(f"{out} exists: add --overwrite to replace it")
+    if args.k < 1:
+        raise MeshError(f"-k must be at least 1, got {args.k}")
+    s = eigensolve(read_mesh(args.input), k=args.k, mass=args.mass)
+    atomic_write(out, lambda fh: np.savez(fh, eigenvalues=s.eigenvalues, eigenvectors=s.eigenvectors,
+                                          residuals=s.residuals, mass=s.mass_kind, backend=s.backend))
+    print(f"wrote {out}: {s.k} eigenpairs of {s.n} vertices, λ in [{s.eigenvalues[0]:.4g}, "
+          f"{s.eigenvalues[-1]:.4g}], max residual {s.residuals.max():.1e} ({s.backend})")
+
+
+def _figure(args):
+    from .io import read_mesh
+    from .plot import paper_figures
+
+    mesh = read_mesh(args.input)
+    field = None
+    if args.attribute:
+        if args.attribute not in mesh.vertex:
+            raise MeshError(f"no vertex attribute {args.attribute!r}; the mesh has: "
+                            f"{', '.join(k for k in mesh.vertex)}")
+        field = mesh.vertex[args.attribute].numpy()
+    index = paper_figures(mesh, args.out, field=field, k=args.k, noise=args.noise, seed=args.seed,
+                          name=Path(args.input).stem)
+    print(f"wrote {index} and its figures")
 
 
 def main(argv=None):
@@ -50,10 +223,22 @@ def main(argv=None):
 
             run(out=args.out, k=args.k, reduction=args.reduction, seed=args.seed)
         elif args.command == "info":
-            from .io import read_mesh
+            from .io import read_geometry
             from .mesh import check_mesh
 
-            print(check_mesh(read_mesh(args.mesh)))
+            g = read_geometry(args.mesh)
+            if not hasattr(g, "triangle"):
+                raise MeshError(f"{args.mesh} is a point cloud ({len(g.point.positions)} points): "
+                                "info checks meshes")
+            print(check_mesh(g))
+        elif args.command == "filters":
+            _filters(args)
+        elif args.command == "apply":
+            _apply(args)
+        elif args.command == "spectrum":
+            _spectrum(args)
+        elif args.command == "figure":
+            _figure(args)
         else:
             p.print_help()
             return 1

@@ -1,11 +1,17 @@
-"""Mesh files that keep every vertex attribute: PLY (binary by default) through plyfile, and
-other formats (OBJ, OFF, STL, ...) read through Open3D. Writes are atomic.
+"""Mesh and point-cloud files that keep every vertex attribute, and atomic writes.
+
+Formats: PLY (binary by default) through plyfile, ``.npz`` (numpy), and for reading only every
+format Open3D reads (OBJ, OFF, STL, GLB, PCD, XYZ...).
 
 PLY layout written here: ``x y z`` (float64), ``nx ny nz`` when there are normals, ``red green
 blue`` as uchar (what every viewer reads) and, only when the colours are not exact multiples of
 1/255, their exact values as ``o3dheat_colors_0..2`` (float64). Any other vertex attribute ``a``
 of shape (n,) is a property ``a``; of shape (n, c) it is ``a_0 .. a_{c-1}`` with a header comment
 ``o3dheat attribute a c`` so that :func:`read_mesh` restores the (n, c) array. Dtypes are kept.
+A PLY without a face element is a point cloud.
+
+``.npz`` layout: ``positions`` and ``indices`` (meshes), and every other attribute ``a`` as
+``vertex_a`` with its shape and dtype.
 """
 
 from __future__ import annotations
@@ -18,22 +24,37 @@ import numpy as np
 
 from .errors import MeshError
 
-__all__ = ["read_mesh", "write_mesh"]
+__all__ = ["read_mesh", "write_mesh", "read_geometry", "write_geometry", "atomic_write", "atomic_write_text"]
 
 _RESERVED = {"positions", "normals", "colors"}
 
 
-def _attributes(mesh):
+def _attributes(geometry, need_faces=True):
+    """({name: (n, ...) array}, faces (m, 3) or None) of an Open3D mesh or point cloud."""
     import open3d as o3d
 
-    if isinstance(mesh, o3d.geometry.TriangleMesh):
-        mesh = o3d.t.geometry.TriangleMesh.from_legacy(mesh)
-    if not isinstance(mesh, o3d.t.geometry.TriangleMesh):
-        raise MeshError(f"write_mesh needs an Open3D TriangleMesh, got {type(mesh).__name__}")
-    attrs = {key: mesh.vertex[key].numpy() for key in mesh.vertex}
-    if "indices" not in mesh.triangle:
-        raise MeshError("the mesh has no triangles")
-    return attrs, mesh.triangle.indices.numpy()
+    if isinstance(geometry, o3d.geometry.TriangleMesh):
+        geometry = o3d.t.geometry.TriangleMesh.from_legacy(geometry)
+    elif isinstance(geometry, o3d.geometry.PointCloud):
+        geometry = o3d.t.geometry.PointCloud.from_legacy(geometry)
+    if isinstance(geometry, o3d.t.geometry.TriangleMesh):
+        attrs = {key: geometry.vertex[key].numpy() for key in geometry.vertex}
+        if "indices" not in geometry.triangle:
+            raise MeshError("the mesh has no triangles")
+        F = geometry.triangle.indices.numpy()
+    elif isinstance(geometry, o3d.t.geometry.PointCloud) and not need_faces:
+        attrs = {key: geometry.point[key].numpy() for key in geometry.point}
+        F = None
+    else:
+        raise MeshError(f"expected an Open3D TriangleMesh{'' if need_faces else ' or PointCloud'}, "
+                        f"got {type(geometry).__name__}")
+    if "positions" not in attrs:
+        raise MeshError("the geometry has no vertex positions")
+    n = len(attrs["positions"])
+    for key, arr in attrs.items():
+        if len(arr) != n:
+            raise MeshError(f"vertex attribute {key!r} has {len(arr)} rows, the geometry {n} vertices")
+    return attrs, F
 
 
 def _file_mode(path):
@@ -46,22 +67,24 @@ def _file_mode(path):
         return 0o666 & ~mask
 
 
-def write_mesh(path, mesh, binary=True):
-    """Write a mesh and all its vertex attributes to a PLY file, atomically.
+def write_mesh(path, mesh, binary=True, overwrite=True):
+    """Write a mesh and all its vertex attributes to a PLY or ``.npz`` file, atomically.
 
     Parameters
     ----------
     path : str or Path
-        Output file; must end in ``.ply``.
+        Output file ending in ``.ply`` or ``.npz``.
     mesh : o3d.t.geometry.TriangleMesh or o3d.geometry.TriangleMesh
     binary : bool
-        Binary little-endian (default) or ASCII PLY.
+        PLY only: binary little-endian (default) or ASCII.
+    overwrite : bool
+        False refuses to replace an existing file.
 
     Raises
     ------
     MeshError
-        Wrong extension, no triangles, an attribute of the wrong length, or an unwritable path.
-        The target is never left half-written.
+        Wrong extension, no triangles, an attribute of the wrong length, an existing file with
+        ``overwrite=False``, or an unwritable path. The target is never left half-written.
 
     Examples
     --------
@@ -71,12 +94,39 @@ def write_mesh(path, mesh, binary=True):
     >>> io.write_mesh(p, m); len(io.read_mesh(p).vertex.positions)
     114
     """
+    _write(path, *_attributes(mesh, need_faces=True), binary=binary, overwrite=overwrite)
+
+
+def write_geometry(path, geometry, binary=True, overwrite=True):
+    """Like :func:`write_mesh` for a mesh or a point cloud (a PLY or ``.npz`` without faces).
+
+    Examples
+    --------
+    >>> import tempfile, os, numpy as np, open3d as o3d, o3dheat.io as io
+    >>> pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.eye(3)))
+    >>> p = os.path.join(tempfile.mkdtemp(), "p.npz"); io.write_geometry(p, pc)
+    >>> type(io.read_geometry(p)).__name__
+    'PointCloud'
+    """
+    _write(path, *_attributes(geometry, need_faces=False), binary=binary, overwrite=overwrite)
+
+
+def _write(path, attrs, F, binary, overwrite):
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".ply", ".npz"):
+        raise MeshError(f"o3dheat writes PLY or NPZ: {path} should end in .ply or .npz")
+    if not overwrite and path.exists():
+        raise MeshError(f"{path} exists (not overwritten)")
+    if suffix == ".npz":
+        arrays = {"positions": attrs["positions"]}
+        if F is not None:
+            arrays["indices"] = F
+        arrays.update({f"vertex_{k}": v for k, v in attrs.items() if k != "positions"})
+        atomic_write(path, lambda fh: np.savez(fh, **arrays))
+        return
     from plyfile import PlyData, PlyElement
 
-    path = Path(path)
-    if path.suffix.lower() != ".ply":
-        raise MeshError(f"write_mesh writes PLY: {path} should end in .ply")
-    attrs, F = _attributes(mesh)
     V = attrs["positions"]
     n = len(V)
     fields, cols, comments = [], [], []
@@ -85,14 +135,11 @@ def write_mesh(path, mesh, binary=True):
     for key, arr in attrs.items():
         if key == "positions":
             continue
-        if len(arr) != n:
-            raise MeshError(f"vertex attribute {key!r} has {len(arr)} rows, the mesh {n} vertices")
         if key == "normals":
             fields += [("nx", "f8"), ("ny", "f8"), ("nz", "f8")]
             cols += [arr[:, 0], arr[:, 1], arr[:, 2]]
         elif key == "colors":
-            c = np.asarray(arr, dtype=np.float64)
-            u8 = np.clip(np.round(c * 255), 0, 255).astype(np.uint8)
+            u8 = np.clip(np.round(np.asarray(arr, dtype=np.float64) * 255), 0, 255).astype(np.uint8)
             fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
             cols += [u8[:, 0], u8[:, 1], u8[:, 2]]
             if arr.dtype != np.float32 or not np.array_equal((u8 / 255.0).astype(arr.dtype), arr):
@@ -110,10 +157,12 @@ def write_mesh(path, mesh, binary=True):
     vert = np.empty(n, dtype=[(nm, np.dtype(dt).newbyteorder("<").str) for nm, dt in fields])
     for (nm, _), col in zip(fields, cols):
         vert[nm] = col
-    face = np.empty(len(F), dtype=[("vertex_indices", "i4", (3,))])
-    face["vertex_indices"] = F
-    ply = PlyData([PlyElement.describe(vert, "vertex"), PlyElement.describe(face, "face")],
-                  text=not binary, comments=comments)
+    elements = [PlyElement.describe(vert, "vertex")]
+    if F is not None:
+        face = np.empty(len(F), dtype=[("vertex_indices", "i4", (3,))])
+        face["vertex_indices"] = F
+        elements.append(PlyElement.describe(face, "face"))
+    ply = PlyData(elements, text=not binary, comments=comments)
     atomic_write(path, ply.write)
 
 
@@ -158,7 +207,8 @@ def read_mesh(path):
     ----------
     path : str or Path
         PLY (every vertex property is kept, multi-column attributes written by
-        :func:`write_mesh` are restored), or any format Open3D reads (OBJ, OFF, STL, GLB...).
+        :func:`write_mesh` are restored), ``.npz`` written by :func:`write_mesh`, or any format
+        Open3D reads (OBJ, OFF, STL, GLB...).
 
     Returns
     -------
@@ -180,10 +230,37 @@ def read_mesh(path):
     """
     import open3d as o3d
 
+    g = read_geometry(path)
+    if not isinstance(g, o3d.t.geometry.TriangleMesh):
+        raise MeshError(f"{path}: no triangles (a point cloud); use read_geometry for point clouds")
+    return g
+
+
+def read_geometry(path):
+    """Read a mesh or a point cloud with all its vertex attributes.
+
+    PLY and ``.npz`` files without faces, and the point formats Open3D reads (PCD, XYZ, PTS),
+    give an ``o3d.t.geometry.PointCloud``; everything else an ``o3d.t.geometry.TriangleMesh``.
+
+    Raises
+    ------
+    MeshError
+        Missing, unreadable or truncated file.
+    """
+    import open3d as o3d
+
     path = Path(path)
     if not path.is_file():
         raise MeshError(f"no such file: {path}")
-    if path.suffix.lower() != ".ply":
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        return _read_npz(path)
+    if suffix != ".ply":
+        if suffix in (".pcd", ".xyz", ".xyzn", ".xyzrgb", ".pts"):
+            pc = o3d.t.io.read_point_cloud(str(path))
+            if "positions" not in pc.point or len(pc.point.positions) == 0:
+                raise MeshError(f"{path}: no points could be read (unreadable or empty file)")
+            return pc
         legacy = o3d.io.read_triangle_mesh(str(path))
         if len(legacy.triangles) == 0:
             raise MeshError(f"{path}: no triangles could be read (unreadable or empty file)")
@@ -193,28 +270,37 @@ def read_mesh(path):
     try:
         ply = PlyData.read(str(path))
         vert = ply["vertex"].data
-        face = ply["face"].data
+        face = ply["face"].data if "face" in [e.name for e in ply.elements] else None
     except Exception as e:
-        raise MeshError(f"{path}: not a readable PLY mesh ({type(e).__name__}: {e})") from e
+        raise MeshError(f"{path}: not a readable PLY file ({type(e).__name__}: {e})") from e
     names = list(vert.dtype.names)
+    if not {"x", "y", "z"} <= set(names):
+        raise MeshError(f"{path}: the vertices have no x, y, z")
     multi = {}
     for c in ply.comments:
         parts = c.split()
         if len(parts) >= 4 and parts[:2] == ["o3dheat", "attribute"]:
             multi[parts[2]] = int(parts[3])
-    fkey = "vertex_indices" if "vertex_indices" in face.dtype.names else face.dtype.names[0]
-    try:
-        F = np.stack(face[fkey]).astype(np.int64)
-    except ValueError as e:
-        raise MeshError(f"{path}: faces are not all triangles") from e
-    if F.ndim != 2 or F.shape[1] != 3:
-        raise MeshError(f"{path}: faces are not all triangles")
-    mesh = o3d.t.geometry.TriangleMesh()
-    mesh.vertex.positions = o3d.core.Tensor(np.stack([vert["x"], vert["y"], vert["z"]], 1).astype(np.float64))
-    mesh.triangle.indices = o3d.core.Tensor(F)
+    if face is not None and len(face):
+        fkey = "vertex_indices" if "vertex_indices" in face.dtype.names else face.dtype.names[0]
+        try:
+            F = np.stack(face[fkey]).astype(np.int64)
+        except ValueError as e:
+            raise MeshError(f"{path}: faces are not all triangles") from e
+        if F.ndim != 2 or F.shape[1] != 3:
+            raise MeshError(f"{path}: faces are not all triangles")
+        if F.min() < 0 or F.max() >= len(vert):
+            raise MeshError(f"{path}: face indices out of range (corrupted file?)")
+        geo = o3d.t.geometry.TriangleMesh()
+        geo.triangle.indices = o3d.core.Tensor(F)
+        attrs = geo.vertex
+    else:
+        geo = o3d.t.geometry.PointCloud()
+        attrs = geo.point
+    attrs["positions"] = o3d.core.Tensor(np.stack([vert["x"], vert["y"], vert["z"]], 1).astype(np.float64))
     used = {"x", "y", "z"}
     if {"nx", "ny", "nz"} <= set(names):
-        mesh.vertex.normals = o3d.core.Tensor(np.stack([vert["nx"], vert["ny"], vert["nz"]], 1))
+        attrs["normals"] = o3d.core.Tensor(np.stack([vert["nx"], vert["ny"], vert["nz"]], 1))
         used |= {"nx", "ny", "nz"}
     for key, c in multi.items():
         cols = [f"{key}_{j}" for j in range(c)]
@@ -222,14 +308,45 @@ def read_mesh(path):
             continue
         arr = np.stack([vert[nm] for nm in cols], 1)
         used |= set(cols)
-        mesh.vertex["colors" if key == "o3dheat_colors" else key] = o3d.core.Tensor(np.ascontiguousarray(arr))
+        attrs["colors" if key == "o3dheat_colors" else key] = o3d.core.Tensor(np.ascontiguousarray(arr))
     if {"red", "green", "blue"} <= set(names):
         used |= {"red", "green", "blue"}
-        if "colors" not in mesh.vertex:
+        if "colors" not in attrs:
             rgb = np.stack([vert["red"], vert["green"], vert["blue"]], 1)
             scale = 255.0 if rgb.dtype == np.uint8 else (65535.0 if rgb.dtype == np.uint16 else 1.0)
-            mesh.vertex.colors = o3d.core.Tensor((rgb / scale).astype(np.float32))
+            attrs["colors"] = o3d.core.Tensor((rgb / scale).astype(np.float32))
     for nm in names:
         if nm not in used:
-            mesh.vertex[nm] = o3d.core.Tensor(np.ascontiguousarray(vert[nm]))
-    return mesh
+            attrs[nm] = o3d.core.Tensor(np.ascontiguousarray(vert[nm]))
+    return geo
+
+
+def _read_npz(path):
+    import open3d as o3d
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except Exception as e:
+        raise MeshError(f"{path}: not a readable NPZ file ({type(e).__name__}: {e})") from e
+    if "positions" not in data:
+        raise MeshError(f"{path}: no 'positions' array (not written by o3dheat?)")
+    V = data.pop("positions")
+    n = len(V)
+    if "indices" in data:
+        F = data.pop("indices")
+        if F.ndim != 2 or F.shape[1] != 3 or (F.size and (F.min() < 0 or F.max() >= n)):
+            raise MeshError(f"{path}: 'indices' is not a valid (m, 3) array of vertex indices")
+        geo = o3d.t.geometry.TriangleMesh()
+        geo.triangle.indices = o3d.core.Tensor(F)
+        attrs = geo.vertex
+    else:
+        geo = o3d.t.geometry.PointCloud()
+        attrs = geo.point
+    attrs["positions"] = o3d.core.Tensor(V)
+    for key, arr in data.items():
+        name = key[len("vertex_"):] if key.startswith("vertex_") else key
+        if len(arr) != n:
+            raise MeshError(f"{path}: {key!r} has {len(arr)} rows for {n} vertices")
+        attrs[name] = o3d.core.Tensor(np.ascontiguousarray(arr))
+    return geo

@@ -83,3 +83,55 @@ def test_written_file_has_ordinary_permissions(tmp_path, mesh):
     mask = os.umask(0)
     os.umask(mask)
     assert (p.stat().st_mode & 0o777) == (0o666 & ~mask)
+
+
+def _same(a, b, attrs):
+    for key in a:
+        x, y = a[key].numpy(), b[key].numpy()
+        assert x.dtype == y.dtype and x.shape == y.shape, key
+        np.testing.assert_array_equal(x, y)
+    assert sorted(k for k in a) == sorted(k for k in b)
+
+
+def test_npz_round_trip_is_exact(tmp_path, mesh):
+    from o3dheat.io import read_geometry, write_geometry
+
+    p = tmp_path / "m.npz"
+    write_mesh(p, mesh)
+    back = read_mesh(p)
+    _same(mesh.vertex, back.vertex, None)
+    np.testing.assert_array_equal(mesh.triangle.indices.numpy(), back.triangle.indices.numpy())
+    pc = o3d.t.geometry.PointCloud(mesh.vertex.positions)
+    pc.point["f"] = mesh.vertex["f"]
+    pc.point["hks"] = mesh.vertex["hks"]
+    for suffix in (".npz", ".ply"):
+        write_geometry(tmp_path / f"p{suffix}", pc)
+        back = read_geometry(tmp_path / f"p{suffix}")
+        assert isinstance(back, o3d.t.geometry.PointCloud)
+        _same(pc.point, back.point, None)
+    with pytest.raises(o3dheat.MeshError, match="point cloud"):
+        read_mesh(tmp_path / "p.ply")
+
+
+def test_no_accidental_overwrite_and_corrupt_files(tmp_path, mesh):
+    from o3dheat.io import read_geometry
+
+    p = tmp_path / "m.ply"
+    write_mesh(p, mesh)
+    before = p.read_bytes()
+    with pytest.raises(o3dheat.MeshError, match="exists"):
+        write_mesh(p, mesh, overwrite=False)
+    assert p.read_bytes() == before
+    cut = tmp_path / "cut.ply"
+    cut.write_bytes(before[: len(before) // 2])  # truncated
+    with pytest.raises(o3dheat.MeshError, match="not a readable PLY"):
+        read_geometry(cut)
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"not a zip file")
+    with pytest.raises(o3dheat.MeshError, match="not a readable NPZ"):
+        read_geometry(junk)
+    np.savez(tmp_path / "bad.npz", positions=np.zeros((3, 3)), indices=np.array([[0, 1, 7]]))
+    with pytest.raises(o3dheat.MeshError, match="indices"):
+        read_geometry(tmp_path / "bad.npz")
+    with pytest.raises(o3dheat.MeshError, match="PLY or NPZ"):
+        write_mesh(tmp_path / "m.stl", mesh)
