@@ -14,6 +14,8 @@ from .spectrum import Spectrum, eigensolve
 from .topology import (CriticalPoints, PersistenceDiagram, critical_points, level_sets, persistence,
                        simplify_critical_points)
 
+from . import approximation, fem, filters, io, plot, sampling, topology  # noqa: E402  (o3dheat.filters.apply, ...)
+
 __version__ = "0.1.0"
 
 __all__ = [

@@ -61,8 +61,8 @@ def decimate(mesh, reduction=0.7, target_faces=None):
     >>> import open3d as o3d
     >>> from o3dheat.sampling import decimate
     >>> V, F = decimate(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40), reduction=0.5)
-    >>> 1400 < len(F) < 1700
-    True
+    >>> len(F)                # half of the 6240 faces
+    3120
     """
     import fast_simplification
 

@@ -48,3 +48,95 @@ def test_console_script_runs():
 
 def test_filters_package_importable():
     import o3dheat_filters  # noqa: F401
+
+
+# ------------------------------------------------------------------------ the other commands
+import open3d as o3d  # noqa: E402
+import pytest  # noqa: E402
+
+
+@pytest.fixture
+def sphere_ply(tmp_path):
+    from o3dheat.io import write_mesh
+
+    p = tmp_path / "sphere.ply"
+    write_mesh(p, o3d.t.geometry.TriangleMesh.create_sphere(1.0, 12))
+    return p
+
+
+def test_cli_filters(capsys):
+    assert main(["filters"]) == 0
+    out = capsys.readouterr().out
+    assert "heat_smooth" in out and "colorize" in out
+    assert main(["filters", "hks"]) == 0
+    out = capsys.readouterr().out
+    assert "form" in out and "default 'density'" in out
+    assert main(["filters", "nope"]) == 2
+    assert "unknown filter" in capsys.readouterr().err
+
+
+def test_cli_apply_chain_round_trip(tmp_path, sphere_ply, capsys):
+    out, chain = tmp_path / "out.ply", tmp_path / "chain.toml"
+    rc = main(["apply", str(sphere_ply), str(out), "-f", "scalar:kind=height",
+               "-f", "heat_smooth:attribute=height,k=20,times=0.01+0.02", "-f", "colorize:attribute=height_smooth",
+               "--save-chain", str(chain)])
+    assert rc == 0, capsys.readouterr().err
+    assert "height_smooth (" in capsys.readouterr().out
+    m = read_mesh(out)
+    assert m.vertex["height_smooth"].shape[1] == 2 and "colors" in m.vertex
+    again = tmp_path / "again.npz"
+    assert main(["apply", str(sphere_ply), str(again), "--chain", str(chain)]) == 0
+    assert np.array_equal(read_mesh(again).vertex["height_smooth"].numpy(), m.vertex["height_smooth"].numpy())
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-f", "nope"], "unknown filter"),
+    (["-f", "hks:kk=3"], "no parameter 'kk'"),
+    (["-f", "hks:k=many"], "integer"),
+    (["-f", "hks:form=other"], "one of"),
+    (["-f", "hks:k"], "key=value"),
+    (["-f", "heat_smooth:attribute=missing,k=10"], "no vertex attribute 'missing'"),
+    ([], "no filter given"),
+    (["--chain", "/no/chain.toml"], "cannot read chain"),
+])
+def test_cli_apply_user_errors(tmp_path, sphere_ply, capsys, args, message):
+    out = tmp_path / "o.ply"
+    assert main(["apply", str(sphere_ply), str(out)] + args) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not out.exists()  # nothing half-written
+
+
+def test_cli_apply_never_overwrites_by_accident(tmp_path, sphere_ply, capsys):
+    before = sphere_ply.read_bytes()
+    assert main(["apply", str(sphere_ply), str(sphere_ply), "-f", "scalar"]) == 2
+    assert "refusing to overwrite the input" in capsys.readouterr().err
+    assert sphere_ply.read_bytes() == before
+    out = tmp_path / "o.ply"
+    out.write_text("keep me")
+    assert main(["apply", str(sphere_ply), str(out), "-f", "scalar"]) == 2
+    assert out.read_text() == "keep me"
+    assert main(["apply", str(sphere_ply), str(out), "-f", "scalar", "--overwrite"]) == 0
+    assert main(["apply", str(sphere_ply), str(tmp_path / "o.stl"), "-f", "scalar"]) == 2
+    assert main(["apply", str(tmp_path / "missing.ply"), str(tmp_path / "x.ply"), "-f", "scalar"]) == 2
+    assert "no such file" in capsys.readouterr().err
+
+
+def test_cli_spectrum_and_figure(tmp_path, sphere_ply, capsys):
+    spec = tmp_path / "s.npz"
+    assert main(["spectrum", str(sphere_ply), "-k", "9", "-o", str(spec)]) == 0
+    with np.load(spec) as z:
+        assert np.allclose(z["eigenvalues"][1:4], 2.0, rtol=0.05) and z["eigenvectors"].shape[1] == 9
+    assert main(["spectrum", str(sphere_ply), "-k", "9", "-o", str(spec)]) == 2  # exists
+    assert main(["spectrum", str(sphere_ply), "-k", "0", "-o", str(tmp_path / "t.npz")]) == 2
+    figs = tmp_path / "figs"
+    assert main(["figure", str(sphere_ply), "-o", str(figs), "-k", "30"]) == 0
+    assert (figs / "index.md").exists() and len(list(figs.glob("*.png"))) == 6
+    assert main(["figure", str(sphere_ply), "-o", str(figs), "--attribute", "nope"]) == 2
+    assert "no vertex attribute" in capsys.readouterr().err
+
+
+def test_every_subcommand_has_examples():
+    for cmd in ("demo", "info", "filters", "apply", "spectrum", "figure"):
+        r = subprocess.run([sys.executable, "-m", "o3dheat.cli", cmd, "--help"], capture_output=True, text=True)
+        assert r.returncode == 0 and "examples:" in r.stdout, cmd

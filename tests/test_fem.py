@@ -105,3 +105,21 @@ def test_zero_area_face_rejected_by_raw_operators():
     V = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0.0]])
     with pytest.raises(o3dheat.MeshError, match="zero area"):
         o3dheat.stiffness_matrix(V, np.array([[0, 1, 2]]))
+
+
+def test_curvatures_and_gauss_bonnet():
+    from conftest import grid, icosphere, torus
+
+    from o3dheat.fem import gaussian_curvature, mean_curvature, voronoi_areas
+
+    for R in (0.5, 3.0):
+        V, F = icosphere(4, radius=R)
+        assert np.allclose(mean_curvature(V, F), 1 / R, rtol=0.02)
+        assert np.allclose(gaussian_curvature(V, F), 1 / R**2, rtol=0.05)
+    for (V, F), chi in ((icosphere(2), 2), (torus(), 0), (grid(jitter=0.3), 1)):
+        # discrete Gauss-Bonnet: Σ (angle defect) = 2π χ, exactly, boundaries included
+        assert abs(gaussian_curvature(V, F) @ voronoi_areas(V, F) - 2 * np.pi * chi) < 1e-9
+    V, F = grid()
+    interior = (V[:, 0] > 0) & (V[:, 0] < 2) & (V[:, 1] > 0) & (V[:, 1] < 1)
+    assert np.allclose(mean_curvature(V, F)[interior], 0, atol=1e-9)  # a plane
+    assert np.allclose(gaussian_curvature(V, F)[interior], 0, atol=1e-9)

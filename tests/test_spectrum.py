@@ -214,3 +214,21 @@ def test_unwritable_cache_is_not_fatal(tmp_path, irregular_mesh, caplog):
     with caplog.at_level(logging.WARNING, logger="o3dheat"):
         s = o3dheat.eigensolve(irregular_mesh, k=4, cache=blocker / "sub")
     assert s.k == 4 and "could not write the spectrum cache" in caplog.text
+
+
+def test_eigensolve_operators_matches_eigensolve():
+    import scipy.sparse as sp
+
+    from conftest import icosphere
+
+    from o3dheat.spectrum import eigensolve_operators
+
+    V, F = icosphere(3)
+    ref = o3dheat.eigensolve((V, F), k=12)
+    s = eigensolve_operators(ref.stiffness, ref.mass, k=12)
+    assert np.allclose(s.eigenvalues, ref.eigenvalues, rtol=1e-8, atol=1e-10)
+    assert s.faces is None and s.mass_kind == "given"
+    with pytest.raises(o3dheat.MeshError, match="symmetric"):
+        eigensolve_operators(sp.triu(ref.stiffness), ref.mass, k=3)
+    with pytest.raises(o3dheat.MeshError, match="exceeds"):
+        eigensolve_operators(ref.stiffness, ref.mass, k=10**6)
