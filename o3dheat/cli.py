@@ -69,6 +69,8 @@ def _parser():
     a.add_argument("--save-chain", metavar="TOML", help="also write the chain that was run")
     a.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
     a.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
+    a.add_argument("--cache", nargs="?", const=True, metavar="DIR",
+                   help="keep spectra on disk (default folder: $O3DHEAT_CACHE or ~/.cache/o3dheat)")
     s = _sub(sub, "spectrum", "compute the smallest eigenpairs of a mesh and save them")
     s.add_argument("input", help="mesh file")
     s.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
@@ -146,6 +148,8 @@ def _apply(args):
     if not len(chain):
         raise MeshError("no filter given: use -f NAME:key=value or --chain FILE (o3dheat filters lists them)")
     geometry = read_geometry(src)
+    if args.cache:
+        flt.set_disk_cache(args.cache)
     step, close = _progress(len(chain))
     out = chain(geometry, progress=step)
     close()

@@ -42,7 +42,7 @@ import numpy as np
 from .errors import MeshError
 
 __all__ = ["GROUP", "names", "describe", "get", "apply", "Chain", "Parameter", "shared_spectrum",
-           "parse_value"]
+           "set_disk_cache", "parse_value", "refresh"]
 
 GROUP = "o3dheat.filters"
 
@@ -436,6 +436,20 @@ def _to_toml(data):
 # ------------------------------------------------------------------------ the shared spectrum
 _SPECTRA: OrderedDict = OrderedDict()
 _MAX_SPECTRA = 8
+_DISK_CACHE = None
+
+
+def set_disk_cache(folder):
+    """Also keep the filters' spectra on disk: a folder, True (``o3dheat.spectrum.default_cache_dir()``)
+    or None (memory only, the default). Repeated runs on the same mesh then skip the eigensolve.
+
+    Examples
+    --------
+    >>> import tempfile, o3dheat.filters as flt
+    >>> flt.set_disk_cache(tempfile.mkdtemp()); flt.set_disk_cache(None)
+    """
+    global _DISK_CACHE
+    _DISK_CACHE = folder
 
 
 def shared_spectrum(V, F, k=100, mass="consistent", cache=None):
@@ -443,7 +457,8 @@ def shared_spectrum(V, F, k=100, mass="consistent", cache=None):
 
     Filters ask for their spectrum here; a chain that smooths, computes HKS and approximates on
     one mesh solves the eigenproblem once. The in-memory cache keeps the last 8 spectra; ``cache``
-    (a folder, or True for the default) adds :func:`o3dheat.eigensolve`'s on-disk cache.
+    (a folder, or True for the default; default: what :func:`set_disk_cache` set) adds
+    :func:`o3dheat.eigensolve`'s on-disk cache.
 
     Parameters
     ----------
@@ -468,7 +483,7 @@ def shared_spectrum(V, F, k=100, mass="consistent", cache=None):
     if key in _SPECTRA:
         _SPECTRA.move_to_end(key)
         return _SPECTRA[key]
-    spec = eigensolve((V, F), k=k, mass=mass, cache=cache)
+    spec = eigensolve((V, F), k=k, mass=mass, cache=_DISK_CACHE if cache is None else cache)
     _SPECTRA[key] = spec
     while len(_SPECTRA) > _MAX_SPECTRA:
         _SPECTRA.popitem(last=False)

@@ -277,3 +277,30 @@ def test_filters_on_point_clouds(operators):
     else:
         lab = flt.apply(out, "critical_points", attribute="height").point["height_critical"].numpy()
         assert lab.shape == (3000,) and set(np.unique(lab)) <= {0, 1, 2, 3}
+
+
+def test_disk_cache_skips_the_eigensolve(sphere, tmp_path):
+    flt._SPECTRA.clear()
+    flt.set_disk_cache(tmp_path)
+    try:
+        flt.apply(sphere, "hks", k=12)
+        assert len(list(tmp_path.glob("spectrum-*.npz"))) == 1
+        flt._SPECTRA.clear()  # a new session: the disk cache answers
+        spec = flt.shared_spectrum(sphere.vertex.positions.numpy(), sphere.triangle.indices.numpy(), k=12)
+        assert spec.timings["cache"] is True
+    finally:
+        flt.set_disk_cache(None)
+
+
+def test_bad_attributes_and_outputs(sphere, tmp_path):
+    m = sphere.clone()
+    m.vertex["short"] = o3d.core.Tensor(np.zeros(5))
+    with pytest.raises(o3dheat.MeshError, match="5 rows"):
+        flt.apply(m, "heat_smooth", attribute="short", k=10)
+    m.vertex["nan"] = o3d.core.Tensor(np.full(len(m.vertex.positions), np.nan))
+    with pytest.raises(o3dheat.MeshError, match="NaN"):
+        flt.apply(m, "critical_points", attribute="nan")
+    with pytest.raises(o3dheat.MeshError, match="does not exist"):
+        o3dheat.io.write_mesh(tmp_path / "no" / "such" / "dir.ply", sphere)
+    with pytest.raises(o3dheat.MeshError, match="TriangleMesh or PointCloud"):
+        flt.apply("mesh.ply", "hks")
