@@ -18,6 +18,7 @@ import numpy as np
 
 from .kernel import HeatKernel
 from .spectrum import eigensolve
+from .topology import critical_points
 
 __all__ = ["default_mesh", "run", "colormap"]
 
@@ -162,6 +163,9 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     hks = K.hks(scales, form="density")
     timings["hks"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    counts = [sum(critical_points((V, F), g).counts) for g in [f] + list(smooth.T)]
+    timings["critical"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     result = o3d.t.geometry.TriangleMesh()
     result.vertex.positions = o3d.core.Tensor(V)
     result.triangle.indices = o3d.core.Tensor(F)
@@ -178,14 +182,16 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
          f"(fast-simplification, reduction {reduction:g})")
     echo(f"eigenpairs: {spec.k}   backend: {spec.backend}   λ_k = {spec.eigenvalues[-1]:.4g}   "
          f"max residual: {spec.residuals.max():.1e}")
-    echo(f"{'scale':>5} {'t':>11} {'eps_inf':>9} {'range of Φ_t f':>22}")
+    echo(f"noisy field f: {counts[0]} critical points (minima + saddles + maxima)")
+    echo(f"{'scale':>5} {'t':>11} {'eps_inf':>9} {'range of Φ_t f':>22} {'critical points':>16}")
     for i, (t, e) in enumerate(zip(scales, errors), 1):
         col = smooth[:, i - 1]
-        echo(f"{i:>5} {t:>11.4e} {e:>9.4f} {col.min():>10.4g} .. {col.max():<10.4g}")
+        echo(f"{i:>5} {t:>11.4e} {e:>9.4f} {col.min():>10.4g} .. {col.max():<10.4g} {counts[i]:>16}")
     stages = {"load": timings["load"], "resample": timings["resample"],
               "assemble": spec.timings.get("assemble", 0.0), "factorize": spec.timings.get("factorize", 0.0),
               "eigensolve": spec.timings.get("solve", 0.0), "smooth (10 scales)": timings["smooth"],
-              "hks (10 scales)": timings["hks"], "write PLY": timings["write"]}
+              "hks (10 scales)": timings["hks"], "critical points (11 fields)": timings["critical"],
+              "write PLY": timings["write"]}
     echo("seconds per stage: " + ", ".join(f"{key} {v:.2f}" for key, v in stages.items()))
     echo(f"wrote {out} (vertex attributes: f, f_smooth (n,10), hks (n,10), colors)")
     return {"path": out, "n_vertices": len(V), "scales": scales, "errors": errors,
