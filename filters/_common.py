@@ -124,7 +124,7 @@ class Site:
         V, F = self.surface()
         g = np.asarray(g)
         flat = g.reshape(len(V), -1)
-        out = transfer(flat, V, F, self.P)
+        out = transfer(flat, (V, F), self.P)
         return out.reshape((self.n,) + g.shape[1:])
 
     def spectrum(self, k=100, mass="consistent", cache=None):

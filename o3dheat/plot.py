@@ -303,8 +303,8 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     prep = prepare((V0, F0))
     V, F, f = prep.V, prep.F, prep.restrict(f0)
     if len(F) > max_faces:
-        Vd, Fd = decimate((V, F), target_faces=max_faces)
-        f, V, F = transfer(f, V, F, Vd), Vd, Fd
+        Vd, Fd = decimate((V, F), target_faces=max_faces).arrays
+        f, V, F = transfer(f, (V, F), Vd), Vd, Fd
     k = min(k, len(V) - 2)
     K = HeatKernel(eigensolve((V, F), k=k))
     K10 = HeatKernel(eigensolve((V, F), k=min(10, k)))
@@ -340,8 +340,8 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     entries.append(("fig2_eigenpairs.png", f"10 vs {k} eigenpairs at the first and last scale: more "
                     "eigenfunctions, smaller ε∞ and more critical points"))
     # Fig. 3: an irregular sampling; the Voronoi kernel (7) and the iterative scheme (8)
-    Vi, Fi = decimate((V, F), reduction=0.7)
-    fi = transfer(f, V, F, Vi)
+    Vi, Fi = decimate((V, F), reduction=0.7).arrays
+    fi = transfer(f, (V, F), Vi)
     Si = eigensolve((Vi, Fi), k=min(k, len(Vi) - 2))
     Ki, Kv = HeatKernel(Si), HeatKernel(Si, variant="voronoi")
     ti = Ki.scales()[4]

@@ -1,22 +1,361 @@
 """Samplings of a surface and the transfer of functions between them.
 
-* :func:`decimate`: an irregular, curvature-adaptive sampling of a mesh (fast-simplification's
-  quadric decimation keeps detail where the surface bends).
-* :func:`reconstruct`: a triangle mesh from a point cloud (Open3D's Poisson or ball-pivoting
-  reconstruction), so that the FEM operators can be built for points.
-* :func:`transfer`: per-vertex values of a mesh evaluated at other points, by linear
-  (barycentric) interpolation at the closest point of the surface — the PL function itself.
-* :func:`nearest`: values at the nearest sample (for points to mesh vertices).
+Resamplings (each returns a :class:`Resampled`: a new tensor mesh plus what relates it to its
+source; all deterministic, seeded where random):
+
+* :func:`decimate`: quadric decimation (fast-simplification), curvature-adaptive, with the map
+  from source vertices to decimated vertices (its collapse replay);
+* :func:`remesh`: isotropic explicit remeshing (pymeshlab), a uniform sampling;
+* :func:`anisotropic`: one half of the surface coarse and the other fine (pymeshlab remeshing of
+  each half), the strongly non-uniform density of the paper's irregular examples;
+* :func:`jitter`: vertices moved at random in their tangent planes;
+* :func:`subdivide`: midpoint (same surface) or Loop subdivision.
+
+Transfers: :func:`transfer` evaluates the PL function of one sampling at the vertices of another
+(barycentric interpolation at the closest surface point), :func:`nearest` takes the nearest
+sample. Point clouds: :func:`reconstruct` builds a mesh through points.
 """
 
 from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .errors import MeshError
 from .mesh import as_arrays
 
-__all__ = ["decimate", "reconstruct", "transfer", "nearest", "point_arrays"]
+__all__ = ["Resampled", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
+           "reconstruct", "transfer", "nearest", "point_arrays"]
+
+log = logging.getLogger("o3dheat")
+
+
+@dataclass(frozen=True)
+class Resampled:
+    """A new sampling of a surface.
+
+    Attributes
+    ----------
+    V : (r, 3) float64 ndarray
+    F : (m, 3) int64 ndarray
+    kind : str
+        "decimate", "remesh", "anisotropic", "jitter" or "subdivide".
+    params : dict
+        The parameters used.
+    vertex_map : (n,) int64 ndarray or None
+        For each source vertex, the new vertex it became (decimate: the vertex it collapsed into,
+        -1 when it was removed with a non-manifold face; jitter: the identity; subdivide: the same
+        index, the new vertices come after). None when no such map exists (remeshing).
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    kind: str
+    params: dict = field(default_factory=dict)
+    vertex_map: np.ndarray | None = None
+
+    @property
+    def mesh(self):
+        """The sampling as a new ``o3d.t.geometry.TriangleMesh``."""
+        import open3d as o3d
+
+        m = o3d.t.geometry.TriangleMesh()
+        m.vertex.positions = o3d.core.Tensor(self.V)
+        m.triangle.indices = o3d.core.Tensor(self.F)
+        return m
+
+    @property
+    def arrays(self):
+        return self.V, self.F
+
+    def __repr__(self):
+        return f"Resampled({self.kind}, {self.params}, vertices={len(self.V)}, faces={len(self.F)})"
+
+
+def _check_result(V, F, kind, params):
+    if len(F) < 4 or len(V) < 4:
+        raise MeshError(f"{kind} with {params} left {len(F)} faces: choose a milder setting")
+
+
+def _clean(V, F, vertex_map=None):
+    """A 2-manifold: degenerate and duplicate faces dropped, then the faces at non-manifold edges
+    and vertices (rare after a decimation or remeshing, fatal to the topology), unreferenced
+    vertices removed; ``vertex_map`` (source -> V) is carried along."""
+    import open3d as o3d
+
+    from .topology import Surface
+
+    F = np.asarray(F, dtype=np.int64)
+    F = F[~((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2]))]
+    _, first = np.unique(np.sort(F, axis=1), axis=0, return_index=True)
+    F = F[np.sort(first)]
+    n0 = len(F)
+    for _ in range(10):
+        try:
+            Surface.from_faces(len(V), F)
+            break
+        except MeshError:
+            m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F.astype(np.int32)))
+            bad_v = np.asarray(m.get_non_manifold_vertices())
+            bad_e = np.asarray(m.get_non_manifold_edges(allow_boundary_edges=True))
+            drop = np.isin(F, bad_v).any(axis=1)
+            if len(bad_e):
+                keys = set(map(tuple, np.sort(bad_e, axis=1).tolist()))
+                for j in range(3):
+                    e = np.sort(F[:, [j, (j + 1) % 3]], axis=1)
+                    drop |= np.array([tuple(x) in keys for x in e.tolist()])
+            F = F[~drop]
+    if len(F) < n0:
+        log.info("%d faces removed to keep a 2-manifold", n0 - len(F))
+    used = np.zeros(len(V), bool)
+    used[F.reshape(-1)] = True
+    remap = np.full(len(V), -1, np.int64)
+    remap[used] = np.arange(int(used.sum()))
+    if vertex_map is not None:
+        vertex_map = np.where(vertex_map >= 0, remap[np.maximum(vertex_map, 0)], -1)
+    return V[used], remap[F], vertex_map
+
+
+def decimate(mesh, reduction=0.7, target_faces=None):
+    """Quadric decimation (fast-simplification): fewer vertices where the surface is flat.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+    reduction : float in [0, 1)
+        Fraction of the faces to remove.
+    target_faces : int, optional
+        Instead of ``reduction``: the number of faces to keep (no-op when the mesh has fewer).
+
+    Returns
+    -------
+    Resampled
+        With ``vertex_map``: source vertex -> the decimated vertex it collapsed into.
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat.sampling import decimate
+    >>> r = decimate(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40), reduction=0.5)
+    >>> len(r.F), len(r.vertex_map)               # half of the 6240 faces; one entry per source vertex
+    (3120, 3122)
+    """
+    import fast_simplification
+
+    V, F = as_arrays(mesh)
+    if target_faces is not None:
+        if target_faces >= len(F):
+            return Resampled(V, F, "decimate", {"target_faces": target_faces}, np.arange(len(V)))
+        reduction = 1.0 - target_faces / len(F)
+    if not 0.0 <= reduction < 1.0:
+        raise MeshError(f"reduction must lie in [0, 1), got {reduction}")
+    params = {"reduction": float(reduction)}
+    if reduction == 0:
+        return Resampled(V, F, "decimate", params, np.arange(len(V)))
+    _, _, collapses = fast_simplification.simplify(V, F.astype(np.int32), target_reduction=float(reduction),
+                                                   return_collapses=True)
+    V2, F2, vmap = fast_simplification.replay_simplification(V, F.astype(np.int32), collapses)
+    V2, F2, vmap = _clean(np.asarray(V2, np.float64), np.asarray(F2, np.int64), np.asarray(vmap, np.int64))
+    _check_result(V2, F2, "decimate", params)
+    return Resampled(V2, F2, "decimate", params, vmap)
+
+
+def _meshset(V, F):
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(np.asarray(V, np.float64), np.asarray(F, np.int32)))
+    return ms, pymeshlab
+
+
+def _from_meshset(ms, kind, params):
+    m = ms.current_mesh()
+    V, F = np.asarray(m.vertex_matrix(), np.float64), np.asarray(m.face_matrix(), np.int64)
+    _check_result(V, F, kind, params)
+    V, F, _ = _clean(V, F)
+    _check_result(V, F, kind, params)
+    return Resampled(V, F, kind, params)
+
+
+def remesh(mesh, target_edge_length, iterations=10):
+    """Isotropic explicit remeshing (pymeshlab): a uniform sampling of the same surface.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+    target_edge_length : float
+        In the units of the mesh (> 0, smaller than the bounding box).
+    iterations : int
+
+    Returns
+    -------
+    Resampled
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d
+    >>> from o3dheat.sampling import remesh
+    >>> r = remesh(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20), 0.1)
+    >>> e = np.linalg.norm(r.V[r.F[:, 0]] - r.V[r.F[:, 1]], axis=1)
+    >>> bool(0.07 < np.median(e) < 0.13)
+    True
+    """
+    V, F = as_arrays(mesh)
+    L = float(target_edge_length)
+    diag = float(np.linalg.norm(np.ptp(V, axis=0)))
+    if not (np.isfinite(L) and 0 < L < diag):
+        raise MeshError(f"target_edge_length must lie in (0, {diag:.4g}) (the bounding-box diagonal), got {L}")
+    ms, pymeshlab = _meshset(V, F)
+    # every parameter explicit: pymeshlab was seen to reuse a previous call's selectedonly=True
+    ms.meshing_isotropic_explicit_remeshing(targetlen=pymeshlab.PureValue(L), iterations=int(iterations),
+                                           selectedonly=False, adaptive=False)
+    return _from_meshset(ms, "remesh", {"target_edge_length": L, "iterations": int(iterations)})
+
+
+def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6):
+    """A strongly non-uniform sampling: the half ``x_axis < median`` remeshed coarse, the other fine.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+    coarse, fine : float
+        Target edge lengths of the two halves, as multiples of the mesh's mean edge length.
+    axis : int
+        0, 1 or 2: the axis that splits the surface.
+    iterations : int
+        Remeshing iterations per half.
+
+    Returns
+    -------
+    Resampled
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d
+    >>> from o3dheat.sampling import anisotropic
+    >>> r = anisotropic(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 30))
+    >>> left = r.V[:, 0] < 0
+    >>> bool(np.sum(~left) > 10 * np.sum(left))       # the fine half holds most vertices
+    True
+    """
+    V, F = as_arrays(mesh)
+    if axis not in (0, 1, 2):
+        raise MeshError(f"axis must be 0, 1 or 2, got {axis}")
+    if not (coarse > 0 and fine > 0):
+        raise MeshError("coarse and fine must be positive")
+    mean_edge = float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
+    cut = float(np.median(V[:, axis]))
+    c = "xyz"[axis]
+    ms, pymeshlab = _meshset(V, F)
+    for cond, length in ((f"({c}0+{c}1+{c}2)/3 < {cut!r}", coarse), (f"({c}0+{c}1+{c}2)/3 >= {cut!r}", fine)):
+        ms.set_selection_none()
+        ms.compute_selection_by_condition_per_face(condselect=cond)
+        ms.meshing_isotropic_explicit_remeshing(targetlen=pymeshlab.PureValue(length * mean_edge),
+                                               selectedonly=True, adaptive=False, iterations=int(iterations))
+    ms.set_selection_none()
+    return _from_meshset(ms, "anisotropic", {"coarse": coarse, "fine": fine, "axis": axis,
+                                             "iterations": int(iterations)})
+
+
+def _vertex_normals(V, F):
+    from .fem import _vertex_normals
+
+    return _vertex_normals(V, F)
+
+
+def jitter(mesh, amount=0.3, seed=0):
+    """Move every vertex at random in its tangent plane (same connectivity, new sample positions).
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+    amount : float
+        Standard deviation of the displacement as a fraction of the mean edge length (< 0.5 keeps
+        the triangles from folding in practice).
+    seed : int
+
+    Returns
+    -------
+    Resampled
+        ``vertex_map`` is the identity.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d
+    >>> from o3dheat.sampling import jitter
+    >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 30)
+    >>> a, b = jitter(m, 0.2, seed=1), jitter(m, 0.2, seed=1)
+    >>> bool(np.array_equal(a.V, b.V)), bool(abs(np.linalg.norm(a.V, axis=1) - 1).max() < 0.01)
+    (True, True)
+    """
+    V, F = as_arrays(mesh)
+    if not (np.isfinite(amount) and amount >= 0):
+        raise MeshError(f"amount must be >= 0, got {amount}")
+    N = _vertex_normals(V, F)
+    h = float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
+    d = np.random.default_rng(seed).standard_normal(V.shape) * amount * h
+    d -= np.einsum("ij,ij->i", d, N)[:, None] * N  # tangential
+    return Resampled(V + d, F.copy(), "jitter", {"amount": float(amount), "seed": int(seed)}, np.arange(len(V)))
+
+
+def subdivide(mesh, iterations=1, method="midpoint"):
+    """Subdivide every triangle into four, ``iterations`` times.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+    iterations : int
+    method : {"midpoint", "loop"}
+        "midpoint" keeps the surface (new vertices on the old edges); "loop" smooths it.
+
+    Returns
+    -------
+    Resampled
+        The source vertices keep their indices (``vertex_map`` is the identity on them).
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat.sampling import subdivide
+    >>> len(subdivide(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10), 2).F)
+    5760
+    """
+    import open3d as o3d
+
+    V, F = as_arrays(mesh)
+    if method not in ("midpoint", "loop"):
+        raise MeshError(f"method must be 'midpoint' or 'loop', got {method!r}")
+    if not (isinstance(iterations, (int, np.integer)) and 0 <= iterations <= 6):
+        raise MeshError(f"iterations must be an integer in [0, 6], got {iterations!r}")
+    m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F.astype(np.int32)))
+    if iterations:
+        m = m.subdivide_midpoint(int(iterations)) if method == "midpoint" else m.subdivide_loop(int(iterations))
+    V2, F2 = np.asarray(m.vertices, np.float64), np.asarray(m.triangles, np.int64)
+    return Resampled(V2, F2, "subdivide", {"iterations": int(iterations), "method": method}, np.arange(len(V)))
+
+
+KINDS = {"decimate": decimate, "remesh": remesh, "anisotropic": anisotropic, "jitter": jitter,
+         "subdivide": subdivide}
+
+
+def resample(mesh, kind, **params):
+    """One of the resamplings by name: ``resample(mesh, "remesh", target_edge_length=0.01)``.
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat.sampling import resample
+    >>> resample(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10), "jitter", amount=0.1).kind
+    'jitter'
+    """
+    if kind not in KINDS:
+        raise MeshError(f"unknown resampling {kind!r}: use one of {', '.join(KINDS)}")
+    try:
+        return KINDS[kind](mesh, **params)
+    except TypeError as e:
+        raise MeshError(f"resampling {kind!r}: {e}") from e
 
 
 def point_arrays(cloud):
@@ -38,71 +377,6 @@ def point_arrays(cloud):
     if not np.all(np.isfinite(P)):
         raise MeshError("the point cloud has NaN or infinite coordinates")
     return P, N
-
-
-def decimate(mesh, reduction=0.7, target_faces=None):
-    """Quadric decimation (fast-simplification): fewer vertices where the surface is flat.
-
-    Parameters
-    ----------
-    mesh : Open3D mesh or (V, F)
-    reduction : float in [0, 1)
-        Fraction of the faces to remove.
-    target_faces : int, optional
-        Instead of ``reduction``: the number of faces to keep (no-op when the mesh has fewer).
-
-    Returns
-    -------
-    V : (r, 3) float64 ndarray
-    F : (m, 3) int64 ndarray
-
-    Examples
-    --------
-    >>> import open3d as o3d
-    >>> from o3dheat.sampling import decimate
-    >>> V, F = decimate(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40), reduction=0.5)
-    >>> len(F)                # half of the 6240 faces
-    3120
-    """
-    import fast_simplification
-
-    V, F = as_arrays(mesh)
-    if target_faces is not None:
-        if target_faces >= len(F):
-            return V, F
-        reduction = 1.0 - target_faces / len(F)
-    if not 0.0 <= reduction < 1.0:
-        raise MeshError(f"reduction must lie in [0, 1), got {reduction}")
-    if reduction == 0:
-        return V, F
-    V2, F2 = fast_simplification.simplify(V, F.astype(np.int32), target_reduction=float(reduction))
-    return _manifold(np.asarray(V2, np.float64), np.asarray(F2, np.int64))
-
-
-def _manifold(V, F):
-    """Degenerate and duplicate faces removed, and the faces at non-manifold edges and vertices
-    (rare after a decimation, fatal to the topology): a 2-manifold, logged when changed."""
-    import logging
-
-    import open3d as o3d
-
-    m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F.astype(np.int32)))
-    m.remove_degenerate_triangles()
-    m.remove_duplicated_triangles()
-    for _ in range(5):
-        bad_v = np.asarray(m.get_non_manifold_vertices())
-        before = len(m.triangles)
-        m.remove_non_manifold_edges()
-        if len(bad_v):
-            T = np.asarray(m.triangles)
-            m.remove_triangles_by_mask(np.isin(T, bad_v).any(axis=1))
-        if len(m.triangles) == before and not len(bad_v):
-            break
-    m.remove_unreferenced_vertices()
-    if len(m.triangles) < len(F):
-        logging.getLogger("o3dheat").info("decimate: %d faces removed to keep a 2-manifold",
-                                          len(F) - len(m.triangles))
-    return np.asarray(m.vertices, np.float64), np.asarray(m.triangles, np.int64)
 
 
 def reconstruct(cloud, method="poisson", depth=8, neighbours=30, trim=0.0):
@@ -171,18 +445,26 @@ def reconstruct(cloud, method="poisson", depth=8, neighbours=30, trim=0.0):
     return as_arrays(mesh)
 
 
-def transfer(values, V, F, points):
-    """Evaluate a PL function given at the vertices of ``(V, F)`` at other points.
+def _surface_of(source):
+    if isinstance(source, Resampled):
+        return source.V, source.F
+    return as_arrays(source)
 
-    Each point is projected on the closest point of the surface and the value there is the
-    barycentric interpolation of the triangle's vertex values.
+
+def transfer(values, source, target):
+    """Evaluate the PL function given at the vertices of ``source`` at the vertices of ``target``.
+
+    Each target point is projected on the closest point of the source surface (Open3D's
+    RaycastingScene) and gets the barycentric interpolation of that triangle's vertex values:
+    exact for functions linear on the source triangles (coordinates, for example), and the
+    identity when both samplings are the same mesh.
 
     Parameters
     ----------
     values : (r,) or (r, c) array_like
-    V : (r, 3) float64 ndarray
-    F : (m, 3) int ndarray
-    points : (p, 3) array_like
+        One row per source vertex.
+    source : Open3D mesh, (V, F) or Resampled
+    target : Open3D mesh, (V, F), Resampled, or (p, 3) array of points
 
     Returns
     -------
@@ -193,15 +475,19 @@ def transfer(values, V, F, points):
     >>> import numpy as np
     >>> from o3dheat.sampling import transfer
     >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]]); F = np.array([[0, 1, 2]])
-    >>> transfer(V[:, 0], V, F, [[0.25, 0.25, 1.0]]).round(6).tolist()
+    >>> transfer(V[:, 0], (V, F), np.array([[0.25, 0.25, 1.0]])).round(6).tolist()
     [0.25]
     """
     import open3d as o3d
 
+    V, F = _surface_of(source)
+    if isinstance(target, np.ndarray) and target.ndim == 2 and target.shape[1] == 3:
+        pts = np.asarray(target, dtype=np.float64)
+    else:
+        pts = _surface_of(target)[0]
     vals = np.asarray(values, dtype=np.float64)
     if vals.shape[0] != len(V):
-        raise MeshError(f"values have {vals.shape[0]} rows for {len(V)} vertices")
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        raise MeshError(f"values have {vals.shape[0]} rows for {len(V)} source vertices")
     scene = o3d.t.geometry.RaycastingScene()
     tm = o3d.t.geometry.TriangleMesh()
     tm.vertex.positions = o3d.core.Tensor(V.astype(np.float32))
@@ -209,12 +495,30 @@ def transfer(values, V, F, points):
     scene.add_triangles(tm)
     ans = scene.compute_closest_points(o3d.core.Tensor(pts.astype(np.float32)))
     tri = ans["primitive_ids"].numpy().astype(np.int64)
-    uv = ans["primitive_uvs"].numpy().astype(np.float64)
-    w = np.stack([1 - uv[:, 0] - uv[:, 1], uv[:, 0], uv[:, 1]], 1)
+    # barycentric coordinates in float64 at the float32 closest point, for exactness
     corner = np.asarray(F, dtype=np.int64)[tri]
+    w = _barycentric(pts, V[corner[:, 0]], V[corner[:, 1]], V[corner[:, 2]])
     if vals.ndim == 1:
         return np.einsum("pk,pk->p", w, vals[corner])
     return np.einsum("pk,pkc->pc", w, vals[corner])
+
+
+def _barycentric(p, a, b, c):
+    """Barycentric coordinates of the closest point of triangle abc to p (clamped to the triangle)."""
+    ab, ac = b - a, c - a
+    n = np.cross(ab, ac)
+    nn = np.einsum("ij,ij->i", n, n)
+    q = p - (np.einsum("ij,ij->i", p - a, n) / np.where(nn > 0, nn, 1.0))[:, None] * n  # onto the plane
+    aq = q - a
+    d00, d01, d11 = np.einsum("ij,ij->i", ab, ab), np.einsum("ij,ij->i", ab, ac), np.einsum("ij,ij->i", ac, ac)
+    d20, d21 = np.einsum("ij,ij->i", aq, ab), np.einsum("ij,ij->i", aq, ac)
+    den = d00 * d11 - d01 * d01
+    den = np.where(den > 0, den, 1.0)
+    v = (d11 * d20 - d01 * d21) / den
+    w = (d00 * d21 - d01 * d20) / den
+    u = 1.0 - v - w
+    W = np.clip(np.stack([u, v, w], 1), 0.0, None)
+    return W / W.sum(axis=1, keepdims=True)
 
 
 def nearest(values, source, points):

@@ -15,10 +15,10 @@ def test_decimate_gives_an_irregular_2_manifold():
 
     bunny, _ = default_mesh()
     for r in (0.5, 0.8, 0.95):
-        V, F = decimate(bunny, reduction=r)
+        V, F = decimate(bunny, reduction=r).arrays
         S = Surface((V, F))  # raises if not a 2-manifold
         assert S.used.all() and abs(len(F) - (1 - r) * len(bunny.triangle.indices)) < 0.02 * len(F) + 10
-    V, F = decimate(bunny, target_faces=4000)
+    V, F = decimate(bunny, target_faces=4000).arrays
     assert len(F) <= 4000
     edge = np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)
     assert edge.max() / np.median(edge) > 2  # non-uniform
@@ -30,12 +30,12 @@ def test_transfer_is_exact_for_linear_functions():
     V, F = icosphere(3)
     f = 2 * V[:, 0] - V[:, 1] + 0.5
     P = icosphere(2)[0] * 1.0  # points on the sphere, also vertices of the coarser sphere
-    g = transfer(f, V, F, P)
+    g = transfer(f, (V, F), P)
     assert np.allclose(g, 2 * P[:, 0] - P[:, 1] + 0.5, atol=1e-6)
-    G = transfer(np.stack([f, -f], 1), V, F, P)
+    G = transfer(np.stack([f, -f], 1), (V, F), P)
     assert G.shape == (len(P), 2) and np.allclose(G[:, 1], -g)
     with pytest.raises(o3dheat.MeshError):
-        transfer(f[:5], V, F, P)
+        transfer(f[:5], (V, F), P)
     assert nearest(f, V, V[:7] + 1e-9).tolist() == f[:7].tolist()
 
 
@@ -56,3 +56,62 @@ def test_reconstruct_bad_input():
         reconstruct(o3d.geometry.PointCloud(), method="poisson")
     with pytest.raises(o3dheat.MeshError):
         reconstruct(o3d.t.geometry.PointCloud(o3d.core.Tensor(np.random.rand(50, 3))), method="nope")
+
+
+def test_transfer_is_the_identity_on_the_same_mesh():
+    from conftest import irregular
+
+    V, F = irregular()
+    f = np.random.default_rng(2).standard_normal((len(V), 3))
+    assert np.allclose(transfer(f, (V, F), (V, F)), f, atol=1e-10)
+    from o3dheat.sampling import subdivide
+
+    s = subdivide((V, F), 2)  # its vertices lie on the source surface: linear fields transfer exactly
+    assert np.allclose(transfer(V, (V, F), s), s.V, atol=1e-12)
+    r = decimate((V, F), reduction=0.5)  # off the surface: within the decimation's deviation
+    assert np.allclose(transfer(V, (V, F), r), r.V, atol=0.02)
+    assert np.allclose(transfer(r.V[:, 0], r, r.mesh), r.V[:, 0], atol=1e-10)
+
+
+def test_decimation_map():
+    from o3dheat.demo import default_mesh
+
+    bunny, _ = default_mesh()
+    V, _ = o3dheat.as_arrays(bunny)
+    r = decimate(bunny, reduction=0.9)
+    m = r.vertex_map
+    assert m.shape == (len(V),) and m.max() < len(r.V)
+    kept = m >= 0
+    assert kept.mean() > 0.99  # only vertices of removed non-manifold faces may be lost
+    assert np.array_equal(np.unique(m[kept]), np.arange(len(r.V)))  # every new vertex has a source
+    edge = np.linalg.norm(r.V[r.F[:, 0]] - r.V[r.F[:, 1]], axis=1)
+    assert np.linalg.norm(V[kept] - r.V[m[kept]], axis=1).max() < 3 * edge.max()  # collapsed nearby
+    assert np.array_equal(decimate(bunny, reduction=0.9).V, r.V)  # deterministic
+
+
+def test_remesh_anisotropic_jitter_subdivide():
+    from o3dheat.sampling import anisotropic, jitter, remesh, resample, subdivide
+
+    V, F = icosphere(3)
+    r = remesh((V, F), 0.08)
+    e = np.linalg.norm(r.V[r.F[:, 0]] - r.V[r.F[:, 1]], axis=1)
+    assert abs(np.median(e) / 0.08 - 1) < 0.3 and r.vertex_map is None
+    assert Surface(r.arrays).euler_characteristic == 2
+    with pytest.raises(o3dheat.MeshError, match="target_edge_length"):
+        remesh((V, F), 10.0)
+    with pytest.raises(o3dheat.MeshError):
+        remesh((V, F), -1)
+    a = anisotropic((V, F), coarse=6.0, fine=0.5)
+    left = a.V[:, 0] < np.median(V[:, 0])
+    assert np.sum(~left) > 8 * np.sum(left) and Surface(a.arrays).euler_characteristic == 2
+    j1, j2 = jitter((V, F), 0.3, seed=5), jitter((V, F), 0.3, seed=5)
+    assert np.array_equal(j1.V, j2.V) and not np.array_equal(j1.V, jitter((V, F), 0.3, seed=6).V)
+    assert np.array_equal(j1.F, F) and np.abs(np.linalg.norm(j1.V, axis=1) - 1).max() < 0.02
+    s = subdivide((V, F), 1)
+    assert len(s.F) == 4 * len(F) and np.array_equal(s.V[: len(V)], V)
+    assert resample((V, F), "subdivide", iterations=1).F.shape == s.F.shape
+    with pytest.raises(o3dheat.MeshError, match="unknown resampling"):
+        resample((V, F), "shuffle")
+    with pytest.raises(o3dheat.MeshError, match="resampling 'jitter'"):
+        resample((V, F), "jitter", bogus=1)
+    assert isinstance(s.mesh, o3d.t.geometry.TriangleMesh)
