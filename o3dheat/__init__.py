@@ -11,10 +11,11 @@ from .fem import mass_matrix, stiffness_matrix
 from .kernel import HeatKernel
 from .mesh import MeshReport, as_arrays, check_mesh
 from .spectrum import Spectrum, eigensolve
+from .study import robustness_study
 from .topology import (CriticalPoints, PersistenceDiagram, critical_points, level_sets, persistence,
                        simplify_critical_points)
 
-from . import approximation, fem, filters, io, plot, sampling, topology  # noqa: E402  (o3dheat.filters.apply, ...)
+from . import approximation, fem, filters, io, plot, sampling, study, topology  # noqa: E402  (o3dheat.filters.apply, ...)
 
 __version__ = "0.1.0"
 
@@ -27,6 +28,7 @@ __all__ = [
     "critical_points", "CriticalPoints", "persistence", "PersistenceDiagram",
     "simplify_critical_points", "level_sets",
     "feature_driven", "scale_space", "ScaleSpace",
+    "robustness_study",
     "MeshError", "SolverError",
     "__version__",
 ]

@@ -1,4 +1,4 @@
-"""The ``o3dheat`` command: ``info``, ``filters``, ``apply``, ``spectrum``, ``figure``, ``demo``.
+"""The ``o3dheat`` command: ``info``, ``filters``, ``apply``, ``spectrum``, ``figure``, ``study``, ``demo``.
 
 User errors (missing files, unknown filters or parameters, bad values) print one line starting
 with ``o3dheat: error:`` and exit with status 2; no traceback. ``-v`` logs what happens.
@@ -35,6 +35,24 @@ none/true/false are read as such. Outputs are .ply or .npz; the input is never o
 unless --overwrite is given.""",
     "spectrum": """examples:
   o3dheat spectrum mesh.ply -k 200 -o spectrum.npz""",
+    "study": """examples:
+  o3dheat study study.toml --out results/                      # a local Dask cluster
+  o3dheat study study.toml --out results/ --scheduler sequential
+  o3dheat study study.toml --out results/ --scheduler tcp://10.0.0.5:8786
+
+study.toml:
+  k = 60
+  scales = 10
+  kernels = ["weighted", "linear", "voronoi", "lumped"]
+  descriptors = ["hks_density", "hks_paper", "smooth_height", "eigenvalues"]
+  [meshes]
+  bunny = "builtin:bunny@20000"      # embedded, decimated to 20000 faces; or a file path
+  [[resampling]]
+  name = "decimate-70"
+  kind = "decimate"
+  reduction = 0.7
+
+An interrupted study resumes: run the same command again.""",
     "figure": """examples:
   o3dheat figure mesh.ply -o figures/                 # noisy height field, the paper's figure kinds
   o3dheat figure mesh.ply -o figures/ --attribute f -k 100""",
@@ -77,6 +95,10 @@ def _parser():
     s.add_argument("--mass", default="consistent", choices=["consistent", "lumped", "identity"])
     s.add_argument("-o", "--out", required=True, help="output .npz (eigenvalues, eigenvectors, residuals)")
     s.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
+    st = _sub(sub, "study", "robustness of descriptors across resamplings (a table and plots)")
+    st.add_argument("config", help="study TOML file")
+    st.add_argument("--out", required=True, help="output folder (tasks/, study.csv, plots)")
+    st.add_argument("--scheduler", help="'sequential', or a Dask scheduler address (default: a local cluster)")
     g = _sub(sub, "figure", "draw the paper's kinds of figures (Figs. 1-7) for a mesh")
     g.add_argument("input", help="mesh file")
     g.add_argument("-o", "--out", required=True, help="output folder (created)")
@@ -209,6 +231,28 @@ def _figure(args):
     print(f"wrote {index} and its figures")
 
 
+def _study(args):
+    from .plot import study as plot_study
+    from .study import load_config, robustness_study
+
+    kw = load_config(args.config)
+    out = Path(args.out)
+    table = robustness_study(out=out, scheduler=args.scheduler, **kw)
+    ok = table[table["error"].fillna("") == ""]
+    for d in sorted(ok["descriptor"].unique()):
+        fig = plot_study(table, descriptor=d)
+        from .io import atomic_write
+
+        atomic_write(out / f"study_{d}.png", lambda fh, fig=fig: fig.savefig(fh, format="png", dpi=100))
+    failed = table[table["error"].fillna("") != ""]
+    summary = ok.groupby(["descriptor", "kernel"])["rel_l2"].median().unstack("kernel")
+    print(f"median relative L2 discrepancy to the reference sampling ({len(ok)} rows):")
+    print(summary.to_string(float_format=lambda x: f"{x:.3g}"))
+    print(f"wrote {out / 'study.csv'} and {out}/study_*.png" + (f"; {len(failed)} task(s) failed:" if len(failed) else ""))
+    for _, r in failed.iterrows():
+        print(f"  {r['mesh']} / {r['resampling']}: {r['error']}")
+
+
 def main(argv=None):
     """Entry point of the ``o3dheat`` command; returns the exit code.
 
@@ -243,6 +287,8 @@ def main(argv=None):
             _spectrum(args)
         elif args.command == "figure":
             _figure(args)
+        elif args.command == "study":
+            _study(args)
         else:
             p.print_help()
             return 1

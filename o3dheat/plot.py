@@ -13,7 +13,7 @@ import numpy as np
 from .errors import MeshError
 from .mesh import as_arrays
 
-__all__ = ["field", "fields", "scale_space", "paper_figures"]
+__all__ = ["field", "fields", "scale_space", "paper_figures", "study"]
 
 CRITICAL_COLORS = {"maxima": "red", "minima": "blue", "saddles": "green"}
 
@@ -386,3 +386,48 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
 
     atomic_write_text(index, "\n".join(lines) + "\n")
     return index
+
+
+def study(table, descriptor="hks_density", metric="rel_l2", title=None):
+    """Discrepancy against the reference sampling vs scale, one line per kernel and one panel per
+    resampling kind (averaged over meshes and resamplings of that kind), from
+    :func:`o3dheat.robustness_study`.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The study's table.
+    descriptor : str
+        Which descriptor to draw ("eigenvalues": one bar per kernel).
+    metric : {"rel_l2", "rel_linf"}
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    if metric not in ("rel_l2", "rel_linf"):
+        raise MeshError(f"metric must be 'rel_l2' or 'rel_linf', got {metric!r}")
+    t = table[(table["descriptor"] == descriptor) & (table["error"].fillna("") == "")]
+    if t.empty:
+        raise MeshError(f"the table has no successful rows for descriptor {descriptor!r}")
+    kinds = sorted(t["kind"].unique())
+    fig, axes = _figure(len(kinds), 1, 3.6, three_d=False)
+    colors = {"weighted": "black", "linear": "tab:blue", "voronoi": "tab:orange", "lumped": "tab:green"}
+    for ax, kind in zip(axes, kinds):
+        sub = t[t["kind"] == kind]
+        mean = sub.groupby(["kernel", "scale"])[metric].mean().reset_index()
+        if (mean["scale"] == 0).all():
+            kernels = list(mean["kernel"])
+            ax.bar(kernels, mean[metric], color=[colors.get(k, "gray") for k in kernels])
+        else:
+            for kern, g in mean.groupby("kernel"):
+                ax.plot(g["scale"], g[metric], "o-", color=colors.get(kern, "gray"), label=kern, ms=3)
+            ax.set_xlabel("scale i (t_i = i/10 λ_k of the reference)")
+            ax.legend(fontsize=8)
+        ax.set_yscale("log")
+        ax.set_title(f"{kind}", fontsize=10)
+        ax.set_ylabel(f"{metric} of {descriptor}")
+    fig.suptitle(title or f"{descriptor}: discrepancy to the reference sampling", fontsize=11)
+    fig.tight_layout()
+    return fig

@@ -172,7 +172,8 @@ def _meshset(V, F):
 
 def _from_meshset(ms, kind, params):
     m = ms.current_mesh()
-    V, F = np.asarray(m.vertex_matrix(), np.float64), np.asarray(m.face_matrix(), np.int64)
+    # copies: pymeshlab's matrices may point into memory that dies with the MeshSet
+    V, F = np.array(m.vertex_matrix(), np.float64, copy=True), np.array(m.face_matrix(), np.int64, copy=True)
     _check_result(V, F, kind, params)
     V, F, _ = _clean(V, F)
     _check_result(V, F, kind, params)

@@ -1,0 +1,473 @@
+"""Robustness studies: do descriptors survive when the same shape is sampled differently? (P17)
+
+A study takes meshes and resamplings, computes the same descriptors with several kernels on the
+reference mesh and on every resampling, brings the resampled descriptors back to the reference
+vertices (:func:`o3dheat.sampling.transfer`) and measures how far they moved:
+
+* ``rel_l2 = ‖d − d_ref‖_A / ‖d_ref‖_A``, with the lumped-mass (area) norm of the reference;
+* ``rel_linf = ‖d − d_ref‖∞ / ‖d_ref‖∞``.
+
+Kernels (the ``kernel`` column): "weighted" (the paper's ``X D_t Xᵀ B``, consistent mass),
+"linear" (``B := I`` in the kernel), "voronoi" (eq. (7), Voronoi areas), "lumped" (the weighted
+kernel of the lumped-mass eigenproblem, common practice). Descriptors: "hks_density",
+"hks_paper" (the two HKS forms), "smooth_height" (``Φ_t`` of the height along the reference's
+longest axis), "smooth_curvature" (``Φ_t`` of the FEM mean curvature), "eigenvalues" (λ_2..λ_k,
+one row with scale 0) and "critical_points" (the number of critical points of the smoothed
+height; both metrics are ``|c − c_ref| / c_ref``). Every sampling uses the reference's times
+(the paper's scales of its weighted spectrum), so a row compares the same t.
+
+Execution: one task per (mesh, resampling) that computes its spectra once; on a local Dask
+cluster by default, in-process with ``scheduler="sequential"``, or on any cluster by address.
+Each task's rows are written to ``out/tasks/`` as soon as it finishes, so an interrupted study
+resumes where it stopped; a failing task becomes a row with its error and does not stop the
+study. All computations run with one BLAS thread, so a sequential and a distributed run give
+the same table, bit for bit.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import re
+import sys
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from .errors import MeshError
+
+__all__ = ["robustness_study", "KERNELS", "DESCRIPTORS", "COLUMNS", "load_config"]
+
+log = logging.getLogger("o3dheat")
+
+KERNELS = ("weighted", "linear", "voronoi", "lumped")
+DESCRIPTORS = ("hks_density", "hks_paper", "smooth_height", "smooth_curvature", "eigenvalues",
+               "critical_points")
+COLUMNS = ["mesh", "resampling", "kind", "kernel", "descriptor", "scale", "t", "rel_l2", "rel_linf",
+           "vertices", "error"]
+
+
+# ------------------------------------------------------------------------------- computation
+def _descriptors(V, F, kernels, descriptors, k, times, axis):
+    """{(kernel, descriptor): array} on one sampling; fields are (n, T)."""
+    from . import fem
+    from .kernel import HeatKernel
+    from .spectrum import eigensolve
+    from .topology import Surface, critical_points
+
+    V, F = _aligned(V), _aligned(F)
+    k = min(k, len(V) - 2)
+    spectra = {}
+    if {"weighted", "linear", "voronoi"} & set(kernels):
+        spectra["consistent"] = eigensolve((V, F), k=k)
+    if "lumped" in kernels:
+        spectra["lumped"] = eigensolve((V, F), k=k, mass="lumped")
+    height = _aligned(V[:, axis])
+    curvature = _aligned(fem.mean_curvature(V, F)) if "smooth_curvature" in descriptors else None
+    surface = Surface.from_faces(len(V), F) if "critical_points" in descriptors else None
+    out = {}
+    for kern in kernels:
+        spec = spectra["lumped" if kern == "lumped" else "consistent"]
+        K = HeatKernel(spec, variant="weighted" if kern == "lumped" else kern)
+        for d in descriptors:
+            if d == "hks_density":
+                out[kern, d] = K.hks(times, form="density")
+            elif d == "hks_paper":
+                out[kern, d] = K.hks(times, form="paper")
+            elif d == "smooth_height":
+                out[kern, d] = K.smooth(height, times)
+            elif d == "smooth_curvature":
+                out[kern, d] = K.smooth(curvature, times)
+            elif d == "eigenvalues":
+                out[kern, d] = spec.eigenvalues.copy()
+            elif d == "critical_points":
+                H = out[kern, "smooth_height"] if (kern, "smooth_height") in out else K.smooth(height, times)
+                out[kern, d] = np.array([sum(critical_points(surface, H[:, i]).counts)
+                                         for i in range(len(times))], dtype=np.float64)
+    return out
+
+
+def _aligned(a):
+    """A C-contiguous copy on a 64-byte boundary: BLAS kernels pick their summation order by the
+    address, and arrays that travelled to a Dask worker land anywhere; aligned inputs give
+    bit-identical results in every process."""
+    a = np.asarray(a)
+    buf = np.empty(a.nbytes + 64, np.uint8)
+    off = (-buf.ctypes.data) % 64
+    out = buf[off:off + a.nbytes].view(a.dtype).reshape(a.shape)
+    out[...] = a
+    return out
+
+
+def _reference(V, F, cfg):
+    """Reference descriptors, the times, the longest axis and the vertex areas of one mesh."""
+    from threadpoolctl import threadpool_limits
+
+    from .fem import mass_matrix
+    from .kernel import HeatKernel
+    from .spectrum import eigensolve
+
+    with threadpool_limits(1):
+        axis = int(np.argmax(np.ptp(V, axis=0)))
+        spec = eigensolve((V, F), k=min(cfg["k"], len(V) - 2))
+        times = HeatKernel(spec).scales(cfg["scales"])
+        desc = _descriptors(V, F, cfg["kernels"], cfg["descriptors"], cfg["k"], times, axis)
+        areas = np.asarray(mass_matrix(V, F, "lumped").diagonal())
+    return {"times": times, "axis": axis, "areas": areas, "descriptors": desc, "V": V, "F": F}
+
+
+def _rel(d, r, a):
+    """(mass-weighted relative L2, relative L∞) of d against r, column by column."""
+    diff = d - r
+    if diff.ndim == 1:
+        diff, r = diff[:, None], r[:, None]
+    num = np.sqrt(np.einsum("i,it->t", a, diff**2))
+    den = np.sqrt(np.einsum("i,it->t", a, r**2))
+    l2 = num / np.where(den > 0, den, 1.0)
+    inf = np.abs(diff).max(axis=0) / np.where(np.abs(r).max(axis=0) > 0, np.abs(r).max(axis=0), 1.0)
+    return l2, inf
+
+
+def _task(mesh_name, res_name, spec, ref, cfg):
+    """Rows of one (mesh, resampling) unit; errors become one row with the message."""
+    from threadpoolctl import threadpool_limits
+
+    from .sampling import resample, transfer
+
+    kind = spec["kind"]
+    try:
+        with threadpool_limits(1):
+            params = {key: v for key, v in spec.items() if key not in ("kind", "name")}
+            r = resample((ref["V"], ref["F"]), kind, **params)
+            desc = _descriptors(r.V, r.F, cfg["kernels"], cfg["descriptors"], cfg["k"], ref["times"], ref["axis"])
+            rows = []
+            for (kern, d), value in desc.items():
+                base = ref["descriptors"][kern, d]
+                if d == "eigenvalues":
+                    m = min(len(value), len(base))
+                    a, b = value[1:m], base[1:m]  # λ_1 = 0
+                    l2 = [np.linalg.norm(a - b) / np.linalg.norm(b)]
+                    inf = [np.abs(a - b).max() / np.abs(b).max()]
+                    scales, ts = [0], [float("nan")]
+                elif d == "critical_points":
+                    l2 = inf = np.abs(value - base) / np.maximum(base, 1.0)
+                    scales, ts = range(1, len(ref["times"]) + 1), ref["times"]
+                else:
+                    back = transfer(value, r, ref["V"])
+                    l2, inf = _rel(back, base, ref["areas"])
+                    scales, ts = range(1, len(ref["times"]) + 1), ref["times"]
+                for s, t, x, y in zip(scales, ts, l2, inf):
+                    rows.append([mesh_name, res_name, kind, kern, d, int(s), float(t), float(x), float(y),
+                                 len(r.V), ""])
+            return rows
+    except Exception as e:  # a failing task is a result, not the end of the study
+        log.debug("task %s/%s failed: %s", mesh_name, res_name, traceback.format_exc())
+        return [[mesh_name, res_name, kind, "", "", 0, float("nan"), float("nan"), float("nan"), 0,
+                 f"{type(e).__name__}: {e}"]]
+
+
+# ------------------------------------------------------------------------------- bookkeeping
+def _slug(text):
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(text))
+
+
+def _task_file(out, mesh_name, res_name):
+    return out / "tasks" / f"{_slug(mesh_name)}__{_slug(res_name)}.csv"
+
+
+def _write_rows(path, rows):
+    import csv
+    import io as _io
+
+    from .io import atomic_write_text
+
+    buf = _io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(COLUMNS)
+    w.writerows([[repr(x) if isinstance(x, float) else x for x in row] for row in rows])
+    atomic_write_text(path, buf.getvalue())
+
+
+def _read_rows(path):
+    import csv
+
+    with open(path, newline="") as fh:
+        rd = csv.reader(fh)
+        header = next(rd)
+        if header != COLUMNS:
+            raise MeshError(f"{path}: not a task file of this version")
+        out = []
+        for row in rd:
+            m, rname, kind, kern, d, s, t, l2, inf, nv, err = row
+            out.append([m, rname, kind, kern, d, int(s), float(t), float(l2), float(inf), int(nv), err])
+        return out
+
+
+def _normalise_resamplings(resamplings):
+    if isinstance(resamplings, dict):
+        items = []
+        for name, spec in resamplings.items():
+            if isinstance(spec, (tuple, list)) and len(spec) == 2:
+                spec = {"kind": spec[0], **spec[1]}
+            items.append((name, dict(spec)))
+    else:
+        items = [(s.get("name") or s["kind"], dict(s)) for s in resamplings]
+    from .sampling import KINDS
+
+    for name, spec in items:
+        if spec.get("kind") not in KINDS:
+            raise MeshError(f"resampling {name!r}: kind must be one of {', '.join(KINDS)}, got {spec.get('kind')!r}")
+    names = [n for n, _ in items]
+    if len(set(names)) != len(names):
+        raise MeshError(f"resampling names must be unique: {names}")
+    return items
+
+
+def _client(scheduler):
+    """(client, owned) for a scheduler argument; None for sequential."""
+    if scheduler == "sequential":
+        return None, False
+    from distributed import Client, LocalCluster
+
+    if scheduler is None:
+        n = os.cpu_count() or 1
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+        return Client(cluster), True
+    if isinstance(scheduler, Client):
+        return scheduler, False
+    if isinstance(scheduler, str):
+        return Client(scheduler), True
+    raise MeshError(f"scheduler must be None, 'sequential', an address or a distributed.Client, got {scheduler!r}")
+
+
+def _bar(total, progress):
+    show = sys.stderr.isatty() if progress is None else bool(progress)
+    if not show:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="task", file=sys.stderr)
+
+
+def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTORS, scales=10, k=100,
+                     out=None, scheduler=None, progress=None):
+    """Run a robustness study (see the module docstring for what is measured).
+
+    Parameters
+    ----------
+    meshes : dict
+        Name -> mesh (Open3D mesh or (V, F)); each is the reference of its resamplings.
+    resamplings : dict or list
+        Name -> ``{"kind": "decimate", "reduction": 0.7}`` (or ``("decimate", {...})``), or a list of
+        such dicts with a "name"; kinds of :data:`o3dheat.sampling.KINDS`.
+    kernels : sequence of str
+        From :data:`KERNELS`.
+    descriptors : sequence of str
+        From :data:`DESCRIPTORS`.
+    scales : int
+        Number of the paper's scales.
+    k : int
+        Eigenpairs per sampling (capped at n − 2).
+    out : str or Path, optional
+        Folder for ``tasks/*.csv`` (one file per finished task: resumable), ``study.csv`` and, when
+        pyarrow is installed, ``study.parquet``. None keeps everything in memory (no resume).
+    scheduler : None, "sequential", str or distributed.Client
+        None: a local Dask cluster with one single-threaded worker process per core;
+        "sequential": in this process; "tcp://host:port": an existing cluster.
+    progress : bool, optional
+        A progress bar (default: when stderr is a terminal).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns :data:`COLUMNS`, one row per mesh × resampling × kernel × descriptor × scale,
+        sorted; failed tasks have one row with ``error`` set.
+
+    Examples
+    --------
+    >>> import open3d as o3d, o3dheat
+    >>> table = o3dheat.robustness_study({"sphere": o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)},
+    ...                                  {"jitter": {"kind": "jitter", "amount": 0.2}}, kernels=["weighted"],
+    ...                                  descriptors=["hks_density"], scales=3, k=20, scheduler="sequential")
+    >>> table[["kernel", "descriptor", "scale"]].values.tolist()
+    [['weighted', 'hks_density', 1], ['weighted', 'hks_density', 2], ['weighted', 'hks_density', 3]]
+    """
+    import pandas as pd
+
+    from .mesh import prepare
+
+    kernels, descriptors = list(kernels), list(descriptors)
+    bad = [x for x in kernels if x not in KERNELS] + [x for x in descriptors if x not in DESCRIPTORS]
+    if bad:
+        raise MeshError(f"unknown kernels/descriptors {bad}: kernels are {KERNELS}, descriptors {DESCRIPTORS}")
+    if not kernels or not descriptors:
+        raise MeshError("give at least one kernel and one descriptor")
+    if not isinstance(meshes, dict) or not meshes:
+        raise MeshError("meshes must be a non-empty dict name -> mesh")
+    items = _normalise_resamplings(resamplings)
+    if not (isinstance(scales, (int, np.integer)) and scales >= 1 and isinstance(k, (int, np.integer)) and k >= 2):
+        raise MeshError("scales must be >= 1 and k >= 2 (integers)")
+    cfg = {"kernels": kernels, "descriptors": descriptors, "scales": int(scales), "k": int(k)}
+    arrays = {}
+    for name, mesh in meshes.items():
+        p = prepare(mesh)
+        arrays[name] = (p.V, p.F)
+    out = Path(out) if out is not None else None
+    if out is not None:
+        (out / "tasks").mkdir(parents=True, exist_ok=True)
+        _check_config(out, cfg, items, arrays)
+    rows, todo = [], []
+    for mname in arrays:
+        for rname, spec in items:
+            f = _task_file(out, mname, rname) if out is not None else None
+            if f is not None and f.exists():
+                rows += _read_rows(f)
+            else:
+                todo.append((mname, rname, spec))
+    bar = _bar(len(todo), progress)
+
+    def done(mname, rname, result):
+        rows.extend(result)
+        if out is not None and not any(r[-1] for r in result):  # failures are retried next time
+            _write_rows(_task_file(out, mname, rname), result)
+        if any(r[-1] for r in result):
+            log.warning("task %s / %s failed: %s", mname, rname, result[0][-1])
+        if bar is not None:
+            bar.update(1)
+
+    needed = sorted({m for m, _, _ in todo})
+    client, owned = _client(scheduler) if todo else (None, False)
+    try:
+        if client is None:
+            refs = {}
+            for mname, rname, spec in todo:
+                if mname not in refs:
+                    refs[mname] = _reference(*arrays[mname], cfg)
+                done(mname, rname, _task(mname, rname, spec, refs[mname], cfg))
+        else:
+            from distributed import as_completed
+
+            refs = {m: client.submit(_reference, *arrays[m], cfg, pure=False) for m in needed}
+            futures = {client.submit(_task, m, r, s, refs[m], cfg, pure=False): (m, r, s) for m, r, s in todo}
+            for fut in as_completed(list(futures)):
+                m, r, s = futures[fut]
+                try:
+                    result = fut.result()
+                except Exception as e:  # e.g. the reference of this mesh failed
+                    result = [[m, r, s["kind"], "", "", 0, float("nan"), float("nan"), float("nan"), 0,
+                               f"{type(e).__name__}: {e}"]]
+                done(m, r, result)
+    finally:
+        if bar is not None:
+            bar.close()
+        if owned:
+            cluster = getattr(client, "cluster", None)
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    table = pd.DataFrame(rows, columns=COLUMNS)
+    table = table.sort_values(["mesh", "resampling", "kernel", "descriptor", "scale"], kind="stable")
+    table = table.reset_index(drop=True)
+    if out is not None:
+        from .io import atomic_write, atomic_write_text
+
+        atomic_write_text(out / "study.csv", table.to_csv(index=False, float_format="%.17g"))
+        try:
+            import pyarrow  # noqa: F401
+
+            atomic_write(out / "study.parquet", lambda fh: table.to_parquet(fh, index=False))
+        except ImportError:
+            pass
+    return table
+
+
+def _check_config(out, cfg, items, arrays):
+    """Refuse to resume a study folder made with other settings (its task files would not fit)."""
+    import hashlib
+
+    from .io import atomic_write_text
+
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        V, F = arrays[name]
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(V).tobytes())
+        h.update(np.ascontiguousarray(F).tobytes())
+    state = {"config": cfg, "resamplings": {n: s for n, s in items}, "meshes": h.hexdigest()}
+    path = out / "study.json"
+    if path.exists():
+        old = json.loads(path.read_text())
+        same_cfg = old.get("config") == state["config"] and old.get("meshes") == state["meshes"]
+        clash = [n for n, s in state["resamplings"].items() if n in old.get("resamplings", {})
+                 and old["resamplings"][n] != s]
+        if not same_cfg or clash:
+            raise MeshError(f"{out} holds a study with other settings or meshes; use another folder "
+                            "or delete it")
+        state["resamplings"] = {**old.get("resamplings", {}), **state["resamplings"]}
+    atomic_write_text(path, json.dumps(state, indent=1, sort_keys=True))
+
+
+def load_config(path):
+    """A study configuration from TOML: ``meshes``, ``[[resampling]]`` tables and settings.
+
+    ::
+
+        k = 100
+        scales = 10
+        kernels = ["weighted", "linear", "voronoi", "lumped"]
+        descriptors = ["hks_density", "smooth_height"]
+        [meshes]
+        bunny = "builtin:bunny"          # or a file path (relative to the TOML file)
+        [[resampling]]
+        name = "decimate-70"
+        kind = "decimate"
+        reduction = 0.7
+
+    Returns
+    -------
+    dict
+        Keyword arguments of :func:`robustness_study` (meshes loaded).
+    """
+    try:
+        import tomllib
+    except ImportError:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
+    from .io import read_mesh
+
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except OSError as e:
+        raise MeshError(f"cannot read {path}: {e.strerror}") from e
+    except tomllib.TOMLDecodeError as e:
+        raise MeshError(f"{path}: not valid TOML ({e})") from e
+    meshes = {}
+    for name, src in (data.get("meshes") or {}).items():
+        meshes[name] = _builtin(src) if str(src).startswith("builtin:") else read_mesh(path.parent / src)
+    res = data.get("resampling") or []
+    if not meshes or not res:
+        raise MeshError(f"{path}: needs a [meshes] table and at least one [[resampling]]")
+    allowed = {"k", "scales", "kernels", "descriptors", "meshes", "resampling"}
+    unknown = set(data) - allowed
+    if unknown:
+        raise MeshError(f"{path}: unknown settings {sorted(unknown)}; allowed: {sorted(allowed)}")
+    kw = {key: data[key] for key in ("k", "scales", "kernels", "descriptors") if key in data}
+    return {"meshes": meshes, "resamplings": res, **kw}
+
+
+def _builtin(src):
+    from .demo import bumpy_torus, default_mesh
+    from .sampling import decimate
+
+    name, _, size = src.partition(":")[2].partition("@")
+    if name == "bunny":
+        mesh = default_mesh()[0]
+    elif name == "torus":
+        mesh = bumpy_torus(96, 48)
+    else:
+        raise MeshError(f"unknown builtin mesh {src!r}: use builtin:bunny or builtin:torus (optionally @FACES)")
+    if size:
+        return decimate(mesh, target_faces=int(size)).mesh
+    return mesh

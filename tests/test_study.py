@@ -1,0 +1,109 @@
+"""Robustness studies: tables, Dask execution, resume, failures (issue 6)."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import icosphere, torus
+
+import o3dheat
+from o3dheat.study import COLUMNS, DESCRIPTORS, KERNELS, robustness_study
+
+MESHES = {"sphere": icosphere(2), "torus": torus(1.0, 0.4, 24, 12)}
+RES = {"dec": {"kind": "decimate", "reduction": 0.5}, "jit": {"kind": "jitter", "amount": 0.3},
+       "sub": ("subdivide", {"iterations": 1})}
+SMALL = dict(k=20, scales=3)
+
+
+@pytest.fixture(scope="module")
+def sequential(tmp_path_factory):
+    out = tmp_path_factory.mktemp("seq")
+    return out, robustness_study(MESHES, RES, out=out, scheduler="sequential", progress=False, **SMALL)
+
+
+def test_table_shape_and_values(sequential):
+    out, t = sequential
+    assert list(t.columns) == COLUMNS and (t["error"] == "").all()
+    per_scale = [d for d in DESCRIPTORS if d != "eigenvalues"]
+    assert len(t) == len(MESHES) * len(RES) * len(KERNELS) * (len(per_scale) * 3 + 1)
+    assert set(t["kernel"]) == set(KERNELS) and set(t["kind"]) == {"decimate", "jitter", "subdivide"}
+    assert np.all(t["rel_l2"] >= 0) and np.all(np.isfinite(t["rel_l2"]))
+    # midpoint subdivision keeps the surface: smoothed fields move little
+    sub = t[(t["kind"] == "subdivide") & (t["descriptor"] == "smooth_height") & (t["kernel"] == "weighted")]
+    assert sub["rel_l2"].max() < 0.02
+    # the eigenvalues do not depend on the kernel variant, only on the mass matrix
+    ev = t[t["descriptor"] == "eigenvalues"].set_index(["mesh", "resampling", "kernel"])["rel_l2"]
+    assert ev.xs("weighted", level="kernel").equals(ev.xs("linear", level="kernel"))
+    back = pd.read_csv(out / "study.csv", keep_default_na=False)
+    assert len(back) == len(t) and np.allclose(back["rel_l2"].astype(float), t["rel_l2"], rtol=0, atol=0)
+    assert (out / "study.parquet").exists()
+
+
+def test_discrepancy_is_zero_for_an_identical_resampling():
+    t = robustness_study({"s": icosphere(2)}, {"same": {"kind": "jitter", "amount": 0.0}},
+                         scheduler="sequential", progress=False, **SMALL)
+    assert t["rel_l2"].max() < 1e-9 and t["rel_linf"].max() < 1e-8
+
+
+def test_dask_gives_the_same_table(sequential, tmp_path):
+    pytest.importorskip("distributed")
+    from distributed import Client, LocalCluster
+
+    _, ref = sequential
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        t = robustness_study(MESHES, RES, out=tmp_path, scheduler=client, progress=False, **SMALL)
+    pd.testing.assert_frame_equal(t, ref, check_exact=True)
+
+
+def test_resume_computes_only_missing_tasks(sequential, tmp_path, monkeypatch):
+    out, ref = sequential
+    import shutil
+
+    shutil.copytree(out, tmp_path / "s")
+    (tmp_path / "s" / "tasks" / "torus__jit.csv").unlink()  # an interrupted run
+    calls = []
+    real = o3dheat.study._task
+    monkeypatch.setattr(o3dheat.study, "_task", lambda *a: calls.append(a[:2]) or real(*a))
+    t = robustness_study(MESHES, RES, out=tmp_path / "s", scheduler="sequential", progress=False, **SMALL)
+    assert calls == [("torus", "jit")]
+    pd.testing.assert_frame_equal(t, ref, check_exact=True)
+    with pytest.raises(o3dheat.MeshError, match="other settings"):
+        robustness_study(MESHES, RES, out=tmp_path / "s", scheduler="sequential", progress=False, k=21, scales=3)
+
+
+def test_a_failing_task_is_reported_not_fatal(tmp_path):
+    res = {"ok": {"kind": "jitter", "amount": 0.2}, "bad": {"kind": "remesh", "target_edge_length": 1e3}}
+    t = robustness_study({"s": icosphere(2)}, res, kernels=["weighted"], descriptors=["hks_density"],
+                         out=tmp_path, scheduler="sequential", progress=False, **SMALL)
+    bad = t[t["resampling"] == "bad"]
+    assert len(bad) == 1 and "target_edge_length" in bad["error"].iloc[0]
+    assert (t[t["resampling"] == "ok"]["error"] == "").all() and len(t) == 4
+    assert not (tmp_path / "tasks" / "s__bad.csv").exists()  # retried on the next run
+
+
+def test_bad_arguments():
+    for kw in (dict(kernels=["nope"]), dict(descriptors=["nope"]), dict(k=1), dict(scales=0)):
+        with pytest.raises(o3dheat.MeshError):
+            robustness_study(MESHES, RES, scheduler="sequential", **kw)
+    with pytest.raises(o3dheat.MeshError, match="kind"):
+        robustness_study(MESHES, {"x": {"kind": "shuffle"}}, scheduler="sequential")
+    with pytest.raises(o3dheat.MeshError):
+        robustness_study({}, RES, scheduler="sequential")
+
+
+def test_config_cli_and_plot(tmp_path, capsys):
+    from o3dheat.cli import main
+
+    cfg = tmp_path / "study.toml"
+    cfg.write_text('k = 20\nscales = 3\nkernels = ["weighted", "linear"]\n'
+                   'descriptors = ["hks_density", "smooth_height", "eigenvalues"]\n'
+                   '[meshes]\nbunny = "builtin:bunny@1500"\n'
+                   '[[resampling]]\nname = "dec"\nkind = "decimate"\nreduction = 0.5\n')
+    assert main(["study", str(cfg), "--out", str(tmp_path / "out"), "--scheduler", "sequential"]) == 0
+    text = capsys.readouterr().out
+    assert "median relative L2" in text and "smooth_height" in text
+    for d in ("hks_density", "smooth_height", "eigenvalues"):
+        assert (tmp_path / "out" / f"study_{d}.png").stat().st_size > 5000
+    cfg.write_text("k = 20\n[meshes]\n")
+    assert main(["study", str(cfg), "--out", str(tmp_path / "o2")]) == 2
+    assert "resampling" in capsys.readouterr().err
