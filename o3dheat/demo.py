@@ -20,7 +20,10 @@ from .kernel import HeatKernel
 from .spectrum import eigensolve
 from .topology import critical_points
 
-__all__ = ["default_mesh", "run", "colormap"]
+__all__ = ["default_mesh", "sample_mesh", "SAMPLES", "bumpy_torus", "run", "colormap"]
+
+# closed 2-manifolds among pymeshlab's sample meshes (used offline by the studies)
+SAMPLES = {"bunny": "bunny.obj", "airplane": "airplane.obj", "bone": "bone.ply"}
 
 log = logging.getLogger("o3dheat")
 
@@ -53,6 +56,42 @@ def default_mesh():
     except (ModuleNotFoundError, OSError):
         pass
     return bumpy_torus(), "bumpy torus"
+
+
+def sample_mesh(name):
+    """A mesh shipped with an installed package, usable offline: "bunny", "airplane", "bone"
+    (pymeshlab's samples) or "torus" (:func:`bumpy_torus`).
+
+    Returns
+    -------
+    o3d.t.geometry.TriangleMesh
+        Unreferenced vertices removed.
+
+    Raises
+    ------
+    MeshError
+        Unknown name, or pymeshlab's sample file missing.
+
+    Examples
+    --------
+    >>> import o3dheat.demo as d
+    >>> len(d.sample_mesh("airplane").triangle.indices)
+    10796
+    """
+    import open3d as o3d
+
+    from .errors import MeshError
+
+    if name == "torus":
+        return bumpy_torus()
+    if name not in SAMPLES:
+        raise MeshError(f"unknown sample mesh {name!r}: use one of {', '.join([*SAMPLES, 'torus'])}")
+    path = importlib.resources.files("pymeshlab") / "tests" / "sample_meshes" / SAMPLES[name]
+    legacy = o3d.io.read_triangle_mesh(str(path)) if path.is_file() else o3d.geometry.TriangleMesh()
+    if len(legacy.triangles) == 0:
+        raise MeshError(f"pymeshlab's sample {SAMPLES[name]} is not installed")
+    legacy.remove_unreferenced_vertices()
+    return o3d.t.geometry.TriangleMesh.from_legacy(legacy)
 
 
 def bumpy_torus(radial=96, tubular=48):

@@ -26,7 +26,7 @@ import numpy as np
 from .errors import MeshError
 from .mesh import as_arrays
 
-__all__ = ["Resampled", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
+__all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
            "reconstruct", "transfer", "nearest", "point_arrays"]
 
 log = logging.getLogger("o3dheat")
@@ -160,6 +160,27 @@ def decimate(mesh, reduction=0.7, target_faces=None):
     V2, F2, vmap = _clean(np.asarray(V2, np.float64), np.asarray(F2, np.int64), np.asarray(vmap, np.int64))
     _check_result(V2, F2, "decimate", params)
     return Resampled(V2, F2, "decimate", params, vmap)
+
+
+def warm_up():
+    """Run one pymeshlab filter in the calling thread.
+
+    pymeshlab loads its plugins (and their libraries) at the first filter call. When that first
+    call happens in a secondary thread (a Dask worker's task thread), the process was seen to
+    abort at exit with a corrupted heap ("malloc_consolidate(): unaligned fastbin chunk").
+    Calling this once from the main thread first avoids it; the studies do so on every worker.
+
+    Examples
+    --------
+    >>> from o3dheat.sampling import warm_up
+    >>> warm_up()
+    """
+    import open3d as o3d
+
+    m = o3d.geometry.TriangleMesh.create_icosahedron(1.0)
+    ms, pymeshlab = _meshset(np.asarray(m.vertices), np.asarray(m.triangles))
+    ms.meshing_isotropic_explicit_remeshing(targetlen=pymeshlab.PureValue(0.5), iterations=1,
+                                           selectedonly=False, adaptive=False)
 
 
 def _meshset(V, F):

@@ -227,19 +227,42 @@ def _normalise_resamplings(resamplings):
 
 def _client(scheduler):
     """(client, owned) for a scheduler argument; None for sequential."""
+    from .sampling import warm_up
+
     if scheduler == "sequential":
+        warm_up()
         return None, False
     from distributed import Client, LocalCluster
 
     if scheduler is None:
         n = os.cpu_count() or 1
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
-        return Client(cluster), True
-    if isinstance(scheduler, Client):
-        return scheduler, False
-    if isinstance(scheduler, str):
-        return Client(scheduler), True
-    raise MeshError(f"scheduler must be None, 'sequential', an address or a distributed.Client, got {scheduler!r}")
+        client, owned = Client(cluster), True
+    elif isinstance(scheduler, Client):
+        client, owned = scheduler, False
+    elif isinstance(scheduler, str):
+        client, owned = Client(scheduler), True
+    else:
+        raise MeshError(f"scheduler must be None, 'sequential', an address or a distributed.Client, "
+                        f"got {scheduler!r}")
+    _register_warm_up(client)
+    return client, owned
+
+
+def _register_warm_up(client):
+    """pymeshlab's first call in each worker's main thread (see o3dheat.sampling.warm_up)."""
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class WarmUp(WorkerPlugin):
+        name = "o3dheat-pymeshlab-warm-up"
+
+        def setup(self, worker):
+            from o3dheat.sampling import warm_up
+
+            warm_up()
+
+    register = getattr(client, "register_plugin", None) or client.register_worker_plugin
+    register(WarmUp())
 
 
 def _bar(total, progress):
@@ -419,7 +442,7 @@ def load_config(path):
         kernels = ["weighted", "linear", "voronoi", "lumped"]
         descriptors = ["hks_density", "smooth_height"]
         [meshes]
-        bunny = "builtin:bunny"          # or a file path (relative to the TOML file)
+        bunny = "builtin:bunny@20000"    # bunny, airplane, bone, torus (@ decimates); or a file path
         [[resampling]]
         name = "decimate-70"
         kind = "decimate"
@@ -458,16 +481,17 @@ def load_config(path):
 
 
 def _builtin(src):
-    from .demo import bumpy_torus, default_mesh
+    """``builtin:NAME[@FACES]``: a sample mesh (:func:`o3dheat.demo.sample_mesh`), optionally
+    decimated to FACES faces."""
+    from .demo import sample_mesh
     from .sampling import decimate
 
     name, _, size = src.partition(":")[2].partition("@")
-    if name == "bunny":
-        mesh = default_mesh()[0]
-    elif name == "torus":
-        mesh = bumpy_torus(96, 48)
-    else:
-        raise MeshError(f"unknown builtin mesh {src!r}: use builtin:bunny or builtin:torus (optionally @FACES)")
+    mesh = sample_mesh(name)
     if size:
-        return decimate(mesh, target_faces=int(size)).mesh
+        try:
+            faces = int(size)
+        except ValueError:
+            raise MeshError(f"{src!r}: the size after @ must be a number of faces") from None
+        return decimate(mesh, target_faces=faces).mesh
     return mesh
