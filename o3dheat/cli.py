@@ -265,6 +265,9 @@ def main(argv=None):
     p = _parser()
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s: %(message)s")
+    if not args.verbose:  # Dask logs every worker start and stop at INFO
+        for name in ("distributed", "dask"):
+            logging.getLogger(name).setLevel(logging.WARNING)
     try:
         if args.command == "demo":
             from .demo import run

@@ -201,15 +201,18 @@ def _from_meshset(ms, kind, params):
     return Resampled(V, F, kind, params)
 
 
-def remesh(mesh, target_edge_length, iterations=10):
+def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None):
     """Isotropic explicit remeshing (pymeshlab): a uniform sampling of the same surface.
 
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
-    target_edge_length : float
+    target_edge_length : float, optional
         In the units of the mesh (> 0, smaller than the bounding box).
     iterations : int
+    edge_factor : float, optional
+        Instead of ``target_edge_length``: a multiple of the mesh's mean edge length (scale-free,
+        for studies over meshes of different sizes).
 
     Returns
     -------
@@ -225,6 +228,12 @@ def remesh(mesh, target_edge_length, iterations=10):
     True
     """
     V, F = as_arrays(mesh)
+    if (target_edge_length is None) == (edge_factor is None):
+        raise MeshError("give target_edge_length or edge_factor (one of them)")
+    if edge_factor is not None:
+        if not (np.isfinite(edge_factor) and edge_factor > 0):
+            raise MeshError(f"edge_factor must be > 0, got {edge_factor}")
+        target_edge_length = edge_factor * float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
     L = float(target_edge_length)
     diag = float(np.linalg.norm(np.ptp(V, axis=0)))
     if not (np.isfinite(L) and 0 < L < diag):
@@ -233,7 +242,10 @@ def remesh(mesh, target_edge_length, iterations=10):
     # every parameter explicit: pymeshlab was seen to reuse a previous call's selectedonly=True
     ms.meshing_isotropic_explicit_remeshing(targetlen=pymeshlab.PureValue(L), iterations=int(iterations),
                                            selectedonly=False, adaptive=False)
-    return _from_meshset(ms, "remesh", {"target_edge_length": L, "iterations": int(iterations)})
+    params = {"target_edge_length": L, "iterations": int(iterations)}
+    if edge_factor is not None:
+        params["edge_factor"] = float(edge_factor)
+    return _from_meshset(ms, "remesh", params)
 
 
 def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6):

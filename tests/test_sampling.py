@@ -99,6 +99,12 @@ def test_remesh_anisotropic_jitter_subdivide():
     assert Surface(r.arrays).euler_characteristic == 2
     with pytest.raises(o3dheat.MeshError, match="target_edge_length"):
         remesh((V, F), 10.0)
+    h = np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1))
+    r2 = remesh((V, F), edge_factor=0.8)
+    e2 = np.linalg.norm(r2.V[r2.F[:, 0]] - r2.V[r2.F[:, 1]], axis=1)
+    assert abs(np.median(e2) / (0.8 * h) - 1) < 0.3 and r2.params["edge_factor"] == 0.8
+    with pytest.raises(o3dheat.MeshError, match="one of them"):
+        remesh((V, F), 0.1, edge_factor=1.0)
     with pytest.raises(o3dheat.MeshError):
         remesh((V, F), -1)
     a = anisotropic((V, F), coarse=6.0, fine=0.5)
