@@ -389,17 +389,12 @@ class Chain:
     @classmethod
     def load(cls, path):
         """Read a chain from a TOML file (``[[filter]]`` tables with ``name`` and parameters)."""
-        try:
-            import tomllib
-        except ImportError:  # pragma: no cover - Python 3.10
-            import tomli as tomllib
+        from .io import read_toml
+
         path = Path(path)
-        try:
-            data = tomllib.loads(path.read_text())
-        except OSError as e:
-            raise MeshError(f"cannot read chain {path}: {e.strerror}") from e
-        except tomllib.TOMLDecodeError as e:
-            raise MeshError(f"{path}: not valid TOML ({e})") from e
+        if not path.is_file():
+            raise MeshError(f"cannot read chain {path}: no such file")
+        data = read_toml(path)
         steps = data.get("filter")
         if not isinstance(steps, list) or not all(isinstance(s, dict) and "name" in s for s in steps):
             raise MeshError(f"{path}: expected [[filter]] tables, each with a name")

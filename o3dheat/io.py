@@ -291,12 +291,9 @@ def read_geometry(path):
             raise MeshError(f"{path}: faces are not all triangles")
         if F.min() < 0 or F.max() >= len(vert):
             raise MeshError(f"{path}: face indices out of range (corrupted file?)")
-        geo = o3d.t.geometry.TriangleMesh()
-        geo.triangle.indices = o3d.core.Tensor(F)
-        attrs = geo.vertex
     else:
-        geo = o3d.t.geometry.PointCloud()
-        attrs = geo.point
+        F = None
+    geo, attrs = _geometry(F)
     attrs["positions"] = o3d.core.Tensor(np.stack([vert["x"], vert["y"], vert["z"]], 1).astype(np.float64))
     used = {"x", "y", "z"}
     if {"nx", "ny", "nz"} <= set(names):
@@ -321,6 +318,33 @@ def read_geometry(path):
     return geo
 
 
+def _geometry(F):
+    """An empty tensor mesh with faces F, or a point cloud when F is None, and its vertex map."""
+    import open3d as o3d
+
+    if F is None:
+        geo = o3d.t.geometry.PointCloud()
+        return geo, geo.point
+    geo = o3d.t.geometry.TriangleMesh()
+    geo.triangle.indices = o3d.core.Tensor(F)
+    return geo, geo.vertex
+
+
+def read_toml(path):
+    """A TOML file as a dict (MeshError when it is missing or invalid)."""
+    try:
+        import tomllib
+    except ImportError:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
+    path = Path(path)
+    try:
+        return tomllib.loads(path.read_text())
+    except OSError as e:
+        raise MeshError(f"cannot read {path}: {e.strerror}") from e
+    except tomllib.TOMLDecodeError as e:
+        raise MeshError(f"{path}: not valid TOML ({e})") from e
+
+
 def _read_npz(path):
     import open3d as o3d
 
@@ -337,12 +361,9 @@ def _read_npz(path):
         F = data.pop("indices")
         if F.ndim != 2 or F.shape[1] != 3 or (F.size and (F.min() < 0 or F.max() >= n)):
             raise MeshError(f"{path}: 'indices' is not a valid (m, 3) array of vertex indices")
-        geo = o3d.t.geometry.TriangleMesh()
-        geo.triangle.indices = o3d.core.Tensor(F)
-        attrs = geo.vertex
     else:
-        geo = o3d.t.geometry.PointCloud()
-        attrs = geo.point
+        F = None
+    geo, attrs = _geometry(F)
     attrs["positions"] = o3d.core.Tensor(V)
     for key, arr in data.items():
         name = key[len("vertex_"):] if key.startswith("vertex_") else key

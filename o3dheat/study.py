@@ -453,19 +453,10 @@ def load_config(path):
     dict
         Keyword arguments of :func:`robustness_study` (meshes loaded).
     """
-    try:
-        import tomllib
-    except ImportError:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
-    from .io import read_mesh
+    from .io import read_mesh, read_toml
 
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except OSError as e:
-        raise MeshError(f"cannot read {path}: {e.strerror}") from e
-    except tomllib.TOMLDecodeError as e:
-        raise MeshError(f"{path}: not valid TOML ({e})") from e
+    data = read_toml(path)
     meshes = {}
     for name, src in (data.get("meshes") or {}).items():
         meshes[name] = _builtin(src) if str(src).startswith("builtin:") else read_mesh(path.parent / src)
