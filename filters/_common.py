@@ -80,6 +80,12 @@ class Site:
             a = a[:, 0]
         return a
 
+    def scalar_on_surface(self, name, column=None):
+        """(f on the input vertices, V, F of the surface, f on the surface vertices)."""
+        f = self.scalar(name, column)
+        V, F = self.surface()
+        return f, V, F, self.to_surface(f)
+
     def set(self, name, values):
         values = np.ascontiguousarray(values)
         if len(values) != self.n:  # pragma: no cover - a filter bug

@@ -58,9 +58,7 @@ class CriticalPointsFilter:
         import o3dheat
 
         site = Site(geometry, self.operators)
-        f = site.scalar(self.attribute, self.column)
-        V, F = site.surface()
-        g = site.to_surface(f)
+        f, V, F, g = site.scalar_on_surface(self.attribute, self.column)
         kind = o3dheat.critical_points((V, F), g).kind
         if self.delta is not None or self.keep_fraction is not None:
             keep = o3dheat.simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)

@@ -70,9 +70,7 @@ class FeatureApprox:
         import o3dheat
 
         site = Site(geometry, self.operators)
-        f = site.scalar(self.attribute, self.column)
-        V, F = site.surface()
-        g = site.to_surface(f)
+        f, V, F, g = site.scalar_on_surface(self.attribute, self.column)
         A = o3dheat.simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)
         K = kernel_of(site, self.k, variant=self.variant)
         t = self.t if self.t is not None else float(K.scales(10)[self.scale - 1])
