@@ -55,7 +55,7 @@ study.toml:
 An interrupted study resumes: run the same command again.""",
     "figure": """examples:
   o3dheat figure mesh.ply -o figures/                 # noisy height field, the paper's figure kinds
-  o3dheat figure mesh.ply -o figures/ --attribute f -k 100""",
+  o3dheat figure mesh.ply -o figures/ --attribute f -k 100 --up y   # a scan with y up""",
 }
 
 
@@ -106,6 +106,7 @@ def _parser():
     g.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
     g.add_argument("--noise", type=float, default=0.1, help="noise added to the height, relative (default: %(default)s)")
     g.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
+    g.add_argument("--up", default="z", choices=["x", "y", "z"], help="axis drawn vertical (default: %(default)s)")
     return p
 
 
@@ -227,7 +228,7 @@ def _figure(args):
                             f"{', '.join(k for k in mesh.vertex)}")
         field = mesh.vertex[args.attribute].numpy()
     index = paper_figures(mesh, args.out, field=field, k=args.k, noise=args.noise, seed=args.seed,
-                          name=Path(args.input).stem)
+                          name=Path(args.input).stem, up=args.up)
     print(f"wrote {index} and its figures")
 
 
