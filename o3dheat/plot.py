@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import MeshError
+from .fem import _vertex_normals
 from .mesh import as_arrays
 
 __all__ = ["field", "fields", "scale_space", "paper_figures", "study"]
@@ -47,9 +48,7 @@ def _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title):
     colors = colormaps[cmap](s)
     # a little Lambert shading so the shape reads
     n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    vn = np.zeros_like(V)
-    for i in range(3):
-        np.add.at(vn, F[:, i], n)
+    vn = _vertex_normals(V, F)
     n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-300
     elev, azim = np.radians(view[0]), np.radians(view[1])
     eye = np.array([np.cos(elev) * np.cos(azim), np.cos(elev) * np.sin(azim), np.sin(elev)])

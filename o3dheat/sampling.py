@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import MeshError
+from .fem import _vertex_normals
 from .mesh import as_arrays
 
 __all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
@@ -291,12 +292,6 @@ def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6):
     ms.set_selection_none()
     return _from_meshset(ms, "anisotropic", {"coarse": coarse, "fine": fine, "axis": axis,
                                              "iterations": int(iterations)})
-
-
-def _vertex_normals(V, F):
-    from .fem import _vertex_normals
-
-    return _vertex_normals(V, F)
 
 
 def jitter(mesh, amount=0.3, seed=0):
