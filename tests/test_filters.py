@@ -192,9 +192,10 @@ def test_chain_toml_round_trip(sphere, tmp_path):
 
 
 def test_a_third_party_plugin_is_found(tmp_path, monkeypatch):
-    src = tmp_path / "src"
-    (src / "tiny_plugin").mkdir(parents=True)
-    (src / "tiny_plugin" / "__init__.py").write_text(textwrap.dedent('''
+    """A throw-away distribution, as a wheel made here (no build backend needed), installed by pip."""
+    import zipfile
+
+    module = textwrap.dedent('''
         from dataclasses import dataclass
         import numpy as np
         import open3d as o3d
@@ -214,20 +215,22 @@ def test_a_third_party_plugin_is_found(tmp_path, monkeypatch):
                 out = mesh.clone()
                 out.vertex["double"] = o3d.core.Tensor(2 * mesh.vertex[self.attribute].numpy())
                 return out
-    '''))
-    (src / "pyproject.toml").write_text(textwrap.dedent('''
-        [build-system]
-        requires = ["setuptools"]
-        build-backend = "setuptools.build_meta"
-        [project]
-        name = "tiny-plugin"
-        version = "0.1"
-        [project.entry-points."o3dheat.filters"]
-        double = "tiny_plugin:Double"
-    '''))
+    ''')
+    info = "tiny_plugin-0.1.dist-info"
+    files = {
+        "tiny_plugin/__init__.py": module,
+        f"{info}/METADATA": "Metadata-Version: 2.1\nName: tiny-plugin\nVersion: 0.1\n",
+        f"{info}/WHEEL": "Wheel-Version: 1.0\nGenerator: o3dheat-tests\nRoot-Is-Purelib: true\nTag: py3-none-any\n",
+        f"{info}/entry_points.txt": "[o3dheat.filters]\ndouble = tiny_plugin:Double\n",
+    }
+    files[f"{info}/RECORD"] = "".join(f"{name},,\n" for name in files) + f"{info}/RECORD,,\n"
+    wheel = tmp_path / "tiny_plugin-0.1-py3-none-any.whl"
+    with zipfile.ZipFile(wheel, "w") as z:
+        for name, text in files.items():
+            z.writestr(name, text)
     target = tmp_path / "site"
-    r = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
-                        "--no-index", "--target", str(target), str(src)], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-index", "--target",
+                        str(target), str(wheel)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     monkeypatch.syspath_prepend(str(target))
     flt.refresh()
