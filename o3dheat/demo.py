@@ -18,7 +18,7 @@ import numpy as np
 
 from .kernel import HeatKernel
 from .spectrum import eigensolve
-from .topology import critical_points
+from .topology import Surface, critical_points
 
 __all__ = ["default_mesh", "sample_mesh", "SAMPLES", "bumpy_torus", "run", "colormap"]
 
@@ -202,7 +202,8 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     hks = K.hks(scales, form="density")
     timings["hks"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    counts = [sum(critical_points((V, F), g).counts) for g in [f] + list(smooth.T)]
+    surface = Surface.from_faces(len(V), F)
+    counts = [sum(critical_points(surface, g).counts) for g in [f] + list(smooth.T)]
     timings["critical"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     result = o3d.t.geometry.TriangleMesh()

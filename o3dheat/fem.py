@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshError
-from .mesh import face_areas
+from .mesh import _edges, face_areas
 
 __all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "mean_curvature", "gaussian_curvature"]
 
@@ -235,10 +235,9 @@ def gaussian_curvature(V, F):
         w = V[F[:, (i + 2) % 3]] - V[F[:, i]]
         ang[:, i] = np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), np.einsum("ij,ij->i", u, w))
     total = np.bincount(F.reshape(-1), weights=ang.reshape(-1), minlength=n)
-    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    _, inv, counts = np.unique(E[:, 0] * n + E[:, 1], return_inverse=True, return_counts=True)
+    E, counts = _edges(F)
     on_boundary = np.zeros(n, bool)
-    on_boundary[E[counts[inv] == 1].reshape(-1)] = True
+    on_boundary[E[counts == 1].reshape(-1)] = True
     defect = np.where(on_boundary, np.pi, 2 * np.pi) - total
     a = voronoi_areas(V, F)
     return np.divide(defect, a, out=np.zeros(n), where=a > 0)

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import hashlib
 import re
 import sys
 import typing
@@ -468,13 +467,10 @@ def shared_spectrum(V, F, k=100, mass="consistent", cache=None):
     -------
     Spectrum
     """
-    from .spectrum import eigensolve
+    from .spectrum import _cache_key, eigensolve
 
     k = min(int(k), len(V))
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(V, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(F, dtype=np.int64).tobytes())
-    key = (h.hexdigest(), k, mass)
+    key = _cache_key(np.asarray(V), np.asarray(F), k, mass, "auto")
     if key in _SPECTRA:
         _SPECTRA.move_to_end(key)
         return _SPECTRA[key]

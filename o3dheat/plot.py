@@ -37,7 +37,15 @@ def _upright(V, up):
     return V[:, _UP[up]]
 
 
-def _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title):
+def _surface(V, F, level_sets, critical_points):
+    """The checked surface, built once per mesh, when level sets or critical points are drawn."""
+    from .topology import Surface
+
+    wanted = (level_sets is not None and level_sets is not False) or critical_points is True
+    return Surface.from_faces(len(V), F, V) if wanted else None
+
+
+def _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title, S=None):
     from matplotlib import colormaps
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
@@ -59,7 +67,7 @@ def _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title):
     ax.add_collection3d(Poly3DCollection(V[F], facecolors=colors, edgecolors="none", linewidths=0, zorder=1))
     if level_sets is not None and level_sets is not False:
         kw = {"count": int(level_sets)} if np.isscalar(level_sets) else {"values": level_sets}
-        ls = find_levels((V, F), f, **kw)
+        ls = find_levels(S if S is not None else (V, F), f, **kw)
         P, L = np.asarray(ls.points), np.asarray(ls.lines)
         if len(L):
             from scipy.spatial import cKDTree
@@ -68,7 +76,7 @@ def _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title):
             L = L[facing[near]]
             ax.add_collection3d(Line3DCollection(P[L], colors="black", linewidths=0.6, zorder=2))
     if critical_points is not None and critical_points is not False:
-        cp = find_critical((V, F), f) if critical_points is True else critical_points
+        cp = find_critical(S if S is not None else (V, F), f) if critical_points is True else critical_points
         for kind, color in CRITICAL_COLORS.items():
             idx = getattr(cp, kind)
             idx = idx[facing[idx]]
@@ -134,7 +142,8 @@ def field(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cmap
     V = _upright(V, up)
     lo, hi = np.percentile(f, [2, 98])
     fig, (ax,) = _figure(size=size)
-    _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title)
+    _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title,
+          _surface(V, F, level_sets, critical_points))
     fig.subplots_adjust(0, 0, 1, 0.95 if title else 1)
     return fig
 
@@ -174,6 +183,7 @@ def fields(mesh, F_values, titles=None, ncols=None, level_sets=10, critical_poin
     nrows = -(-T // ncols)
     fig, axes = _figure(ncols, nrows, size)
     lo, hi = np.percentile(G, [2, 98])
+    S = _surface(V, Fc, level_sets, critical_points)
     for i, ax in enumerate(axes):
         if i >= T:
             ax.set_axis_off()
@@ -181,7 +191,7 @@ def fields(mesh, F_values, titles=None, ncols=None, level_sets=10, critical_poin
         if not shared_range:
             lo, hi = np.percentile(G[:, i], [2, 98])
         _draw(ax, V, Fc, G[:, i], level_sets, critical_points, view, cmap, lo, hi,
-              titles[i] if titles is not None else None)
+              titles[i] if titles is not None else None, S)
     if suptitle:
         fig.suptitle(suptitle, fontsize=11)
     fig.subplots_adjust(0, 0, 1, 0.88 if suptitle else (0.93 if titles is not None else 1.0), wspace=0, hspace=0.08)
@@ -288,7 +298,7 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     from .mesh import prepare
     from .sampling import decimate, transfer
     from .spectrum import eigensolve
-    from .topology import critical_points, simplify_critical_points
+    from .topology import Surface, critical_points, persistence, simplify_critical_points
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -310,8 +320,10 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     t = K.scales()
     entries = []
 
+    S = Surface.from_faces(len(V), F, V)
+
     def count(g):
-        return sum(critical_points((V, F), g).counts)
+        return sum(critical_points(S, g).counts)
 
     # Fig. 1: level sets and critical points across scales, and their variation
     ss = hierarchy(K, f, stop="linf")
@@ -365,8 +377,9 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     entries.append(("fig4_5_canonic.png", "the canonic basis function of one vertex with the linear (B := I) and "
                     "the weighted kernel at two scales"))
     # Figs. 6-7: feature-driven approximation with all vs simplified critical points
-    A_all = simplify_critical_points((V, F), f)
-    A_few = simplify_critical_points((V, F), f, keep_fraction=0.1)
+    d = persistence(S, f)
+    A_all = simplify_critical_points(S, f, diagram=d)
+    A_few = simplify_critical_points(S, f, keep_fraction=0.1, diagram=d)
     ga, _ = feature_driven(K, f, A_all, t[0])
     gf, _ = feature_driven(K, f, A_few, t[0])
     pct = 100.0 * len(A_few) / max(len(A_all), 1)
