@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from .errors import MeshError
 from .mesh import _edges, face_areas
 
-__all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "mean_curvature", "gaussian_curvature"]
+__all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "operators", "mean_curvature", "gaussian_curvature"]
 
 
 def _corner_geometry(V, F):
@@ -68,17 +68,23 @@ def stiffness_matrix(V, F):
     >>> bool(abs(L @ np.ones(len(V))).max() < 1e-12)
     True
     """
-    n = len(V)
     F = np.asarray(F, dtype=np.int64)
-    _, cot, _ = _corner_geometry(V, F)
+    return _stiffness(len(V), F, _corner_geometry(V, F)[1])
+
+
+def _stiffness(n, F, cot):
     # corner i weights the edge (i+1, i+2)
     I = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
     J = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
-    w = 0.5 * np.concatenate([cot[:, 0], cot[:, 1], cot[:, 2]])
-    W = sp.coo_matrix((w, (I, J)), shape=(n, n)).tocsc()
-    W = W + W.T
-    L = sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W
-    return sp.csc_matrix(L)
+    w = -0.5 * np.concatenate([cot[:, 0], cot[:, 1], cot[:, 2]])
+    diag = -np.bincount(I, weights=w, minlength=n) - np.bincount(J, weights=w, minlength=n)
+    d = np.arange(n)
+    return _assemble(n, np.concatenate([I, J, d]), np.concatenate([J, I, d]), np.concatenate([w, w, diag]))
+
+
+def _assemble(n, I, J, w):
+    """One sparse matrix from (row, col, value) triplets, duplicates summed: (n, n) CSC."""
+    return sp.csc_matrix(sp.coo_matrix((w, (I, J)), shape=(n, n)))
 
 
 def voronoi_areas(V, F):
@@ -105,9 +111,11 @@ def voronoi_areas(V, F):
     >>> bool(np.isclose(a.sum(), o3dheat.mesh.face_areas(V, F).sum()))
     True
     """
-    n = len(V)
     F = np.asarray(F, dtype=np.int64)
-    dbl, cot, sq = _corner_geometry(V, F)
+    return _voronoi(len(V), F, *_corner_geometry(V, F))
+
+
+def _voronoi(n, F, dbl, cot, sq):
     area = 0.5 * dbl
     # Voronoi part at corner i: (|e_{i+1}|^2 cot_{i+1} + |e_{i+2}|^2 cot_{i+2}) / 8
     vor = np.stack([(sq[:, (i + 1) % 3] * cot[:, (i + 1) % 3] + sq[:, (i + 2) % 3] * cot[:, (i + 2) % 3]) / 8
@@ -116,6 +124,47 @@ def voronoi_areas(V, F):
     any_obtuse = obtuse.any(axis=1)
     vor[any_obtuse] = np.where(obtuse[any_obtuse], area[any_obtuse, None] / 2, area[any_obtuse, None] / 4)
     return np.bincount(F.reshape(-1), weights=vor.reshape(-1), minlength=n)
+
+
+def operators(V, F, mass="consistent"):
+    """The stiffness matrix, a mass matrix and the Voronoi areas in one pass over the faces.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 ndarray
+    F : (m, 3) int ndarray
+        Every face with a positive area.
+    mass : {"consistent", "lumped", "voronoi", "identity"}
+        As in :func:`mass_matrix`; "identity" gives ``B = I``.
+
+    Returns
+    -------
+    L, B : (n, n) scipy.sparse.csc_matrix
+        Equal to :func:`stiffness_matrix` and :func:`mass_matrix` (the cotangents are computed once).
+    areas : (n,) float64 ndarray
+        Equal to :func:`voronoi_areas`.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_box())
+    >>> L, B, a = o3dheat.fem.operators(V, F)
+    >>> round(float(B.sum()), 12), round(float(a.sum()), 12)
+    (6.0, 6.0)
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    n = len(V)
+    geometry = _corner_geometry(V, F)
+    L = _stiffness(n, F, geometry[1])
+    areas = _voronoi(n, F, *geometry)
+    if mass == "identity":
+        B = sp.identity(n, format="csc")
+    elif mass == "voronoi":
+        B = sp.diags(areas).tocsc()
+    else:
+        B = mass_matrix(V, F, mass)
+    return L, B, areas
 
 
 def mass_matrix(V, F, kind="consistent"):
@@ -153,10 +202,10 @@ def mass_matrix(V, F, kind="consistent"):
         raise MeshError(f"unknown mass kind {kind!r}: use 'consistent', 'lumped' or 'voronoi'")
     I = np.concatenate([F[:, 0], F[:, 1], F[:, 2]])
     J = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
-    off = sp.coo_matrix((np.tile(area / 12, 3), (I, J)), shape=(n, n))
+    off = np.tile(area / 12, 3)
     diag = np.bincount(F.reshape(-1), weights=np.repeat(area / 6, 3), minlength=n)
-    B = off + off.T + sp.diags(diag)
-    return sp.csc_matrix(B)
+    d = np.arange(n)
+    return _assemble(n, np.concatenate([I, J, d]), np.concatenate([J, I, d]), np.concatenate([off, off, diag]))
 
 
 def _vertex_normals(V, F):
@@ -196,8 +245,8 @@ def mean_curvature(V, F):
     """
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    a = voronoi_areas(V, F)
-    LV = stiffness_matrix(V, F) @ V
+    L, _, a = operators(V, F, "identity")
+    LV = L @ V
     H = 0.5 * np.einsum("ij,ij->i", LV, _vertex_normals(V, F))
     return np.divide(H, a, out=np.zeros(len(V)), where=a > 0)
 

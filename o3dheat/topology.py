@@ -47,7 +47,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .errors import MeshError
-from .mesh import _degenerate, as_arrays
+from .mesh import _degenerate, _unique_rows, as_arrays
 
 __all__ = ["CriticalPoints", "PersistenceDiagram", "critical_points", "persistence",
            "simplify_critical_points", "level_sets", "Surface"]
@@ -131,7 +131,7 @@ class Surface:
             raise MeshError("no face is left once the degenerate ones are dropped")
         edges = _edge_table(F, n)
         if np.any(edges[3] > 2):  # duplicate faces are one cause: drop them, then look again
-            _, first = np.unique(np.sort(F, axis=1), axis=0, return_index=True)
+            _, first = _unique_rows(np.sort(F, axis=1), return_index=True)
             if len(first) < len(F):
                 log.warning("dropping %d duplicate faces", len(F) - len(first))
                 F = F[np.sort(first)]

@@ -123,3 +123,14 @@ def test_curvatures_and_gauss_bonnet():
     interior = (V[:, 0] > 0) & (V[:, 0] < 2) & (V[:, 1] > 0) & (V[:, 1] < 1)
     assert np.allclose(mean_curvature(V, F)[interior], 0, atol=1e-9)  # a plane
     assert np.allclose(gaussian_curvature(V, F)[interior], 0, atol=1e-9)
+
+
+@pytest.mark.parametrize("kind", ["consistent", "lumped", "voronoi", "identity"])
+def test_operators_equal_the_separate_functions(mesh, kind):
+    V, F = mesh
+    L, B, a = o3dheat.fem.operators(V, F, kind)
+    assert abs(L - o3dheat.stiffness_matrix(V, F)).max() == 0
+    B0 = sp.identity(len(V)) if kind == "identity" else o3dheat.mass_matrix(V, F, kind)
+    assert abs(B - B0).max() == 0
+    np.testing.assert_array_equal(a, voronoi_areas(V, F))
+    assert L.has_canonical_format and B.format == "csc"

@@ -175,3 +175,17 @@ def test_duplicate_vertices_form_a_seam():
     V, F = icosphere(2)
     r = o3dheat.check_mesh((np.concatenate([V, V[:1]]), np.concatenate([F, [[len(V), 1, 2]]])))
     assert r.duplicate_vertices == 1
+
+
+@pytest.mark.parametrize("high", [5, 1000, 10**7])  # 10**7: three columns do not fit one int64 key
+def test_unique_rows_matches_numpy(high):
+    from o3dheat.mesh import _unique_rows
+
+    A = np.random.default_rng(1).integers(0, high, (500, 3))
+    A[300:400] = A[:100]
+    want = np.unique(A, axis=0, return_index=True, return_counts=True)
+    got = _unique_rows(A, return_index=True, return_counts=True)
+    for w, g in zip(want, got):
+        np.testing.assert_array_equal(w, g)
+    np.testing.assert_array_equal(_unique_rows(A), want[0])
+    assert _unique_rows(np.zeros((0, 3), int)).shape == (0, 3)
