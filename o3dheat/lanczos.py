@@ -43,7 +43,7 @@ def _b_orthonormalize_block(W, B, rng, BW=None):
         try:
             R = np.linalg.cholesky(G).T  # upper triangular
             if np.min(np.diag(R)) > 1e-10 * np.max(np.diag(R)):
-                Rinv = sla.solve_triangular(R, np.eye(len(R)))
+                Rinv = sla.lapack.dtrtri(R)[0]  # b x b: LAPACK directly (solve_triangular costs ms)
                 return W @ Rinv, R, BW @ Rinv
         except np.linalg.LinAlgError:
             pass
@@ -59,6 +59,15 @@ def _rotate(V, m, Z, p, rows=16384):
     """In place, ``V[:, :p] = V[:, :m] @ Z[:, :p]``, by row chunks: no n x p temporary."""
     for r0 in range(0, V.shape[0], rows):
         V[r0:r0 + rows, :p] = V[r0:r0 + rows, :m] @ Z[:, :p]
+
+
+def _sub_bv(BY, BV, C):
+    """In place, ``BY -= [B V_older, B V_newer] @ C`` for the last ``len(C)`` (b or 2b) basis
+    vectors (two products: no copy of the cached blocks into one array)."""
+    b = BV[1].shape[1]
+    if len(C) > b:
+        BY -= BV[0] @ C[:b]
+    BY -= BV[1] @ C[len(C) - b:]
 
 
 def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_restarts=100,
@@ -88,8 +97,9 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
         Seed of the random start block.
     refine : bool
         Finish with :func:`rayleigh_ritz` (exact Rayleigh quotients, B-orthonormal vectors).
-        False returns the Lanczos Ritz values and a view of the Ritz vectors inside the basis, so
-        that a caller can free the factorization before refining.
+        False returns the Lanczos Ritz values and the Ritz vectors in the basis' own memory, shrunk
+        to k columns without a copy, so that a caller can free the factorization and then refine
+        in place (``rayleigh_ritz(..., overwrite=True)``): the peak memory stays that of the basis.
 
     Returns
     -------
@@ -122,10 +132,11 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
     if m_max < k:
         raise SolverError(f"the problem is too small for Lanczos (n={n}, k={k}): use the dense solver")
     rng = np.random.default_rng(seed)
-    V = np.empty((n, m_max + b), order="F")
+    VT = np.empty((m_max + b, n))  # the basis, transposed: its first k rows can be kept in place
+    V = VT.T
     T = np.zeros((m_max + b, m_max + b))
     W, _, BW = _b_orthonormalize_block(rng.standard_normal((n, b)), B, rng)
-    BVl = np.empty((n, 2 * b))  # B times the last two blocks: saves sparse products
+    BV = [None, BW]  # B times the last two blocks (older, newer): saves sparse products
     m = 0
     after_restart = False
     solves = restarts = biggest = steps = full = 0
@@ -138,17 +149,15 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
         solves += b
         BY = B @ Y
         # local orthogonalization: the last two blocks (all of the kept part right after a restart)
-        if after_restart:
-            lo, Vl, BVm = 0, V[:, :m], None
-        else:
-            lo = max(0, m - 2 * b)
-            Vl = V[:, lo:m]
-            BVl[:, :b] = BVl[:, b:]
-            BVl[:, b:] = BW
-            BVm = BVl[:, 2 * b - (m - lo):]
+        lo = 0 if after_restart else max(0, m - 2 * b)
+        Vl = V[:, lo:m]
         Cl = Vl.T @ BY
         Y -= Vl @ Cl
-        BY = B @ Y if BVm is None else BY - BVm @ Cl
+        if after_restart:
+            BY = B @ Y
+        else:
+            BV = [BV[1], BW]
+            _sub_bv(BY, BV, Cl)
         # measure the loss of orthogonality against the whole basis (one pass); restore it with
         # one update when it exceeds sqrt(eps) (the coefficients are then small: no second pass)
         C = V[:, :m].T @ BY
@@ -159,9 +168,9 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
             BY = B @ Y
         else:
             Y -= Vl @ C[lo:m]
-            BY -= BVm @ C[lo:m]
+            _sub_bv(BY, BV, C[lo:m])
         if after_restart:  # the new block is not a neighbour of the kept part: refill the cache
-            BVl[:, b:] = BW
+            BV = [None, BW]
         after_restart = False
         T[lo:m, m - b:m] = Cl + C[lo:m]
         W, R, BW = _b_orthonormalize_block(Y, B, rng, BY)
@@ -186,16 +195,18 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
             m = p
             after_restart = True
     _rotate(V, m, Z, k)  # the Ritz vectors, in the first k columns
-    del Vl, BVm
+    del Vl, BV, V
+    VT.resize((k, n), refcheck=False)  # the Ritz vectors stay, the rest of the basis is freed
+    V = VT.T
     info = {"solves": solves, "restarts": restarts, "basis": biggest, "block": b,
             "full_reorth": full, "steps": steps}
     if not refine:
         return sigma + 1.0 / nu[:k], V[:, :k], info
-    lam, X = rayleigh_ritz(L, B, V[:, :k])
+    lam, X = rayleigh_ritz(L, B, V, overwrite=True)
     return lam, X, info
 
 
-def rayleigh_ritz(L, B, X, chunk=32):
+def rayleigh_ritz(L, B, X, chunk=32, overwrite=False):
     """Rayleigh-Ritz of the pencil (L, B) in the span of the columns of X.
 
     Parameters
@@ -205,13 +216,15 @@ def rayleigh_ritz(L, B, X, chunk=32):
         A basis of the subspace (need not be B-orthonormal).
     chunk : int
         Columns per sparse product (bounds the temporaries to n x chunk).
+    overwrite : bool
+        Write the Ritz vectors into X (by row chunks: no second n x k array) and return it.
 
     Returns
     -------
     lam : (k,) ndarray
         Ascending Ritz values (Rayleigh quotients).
     Y : (n, k) ndarray
-        B-orthonormal Ritz vectors (a new array).
+        B-orthonormal Ritz vectors (a new array, or X itself with ``overwrite``).
 
     Examples
     --------
@@ -228,4 +241,7 @@ def rayleigh_ritz(L, B, X, chunk=32):
         A[:, c:c + chunk] = X.T @ (L @ Xc)
         M[:, c:c + chunk] = X.T @ (B @ Xc)
     lam, U = sla.eigh((A + A.T) / 2, (M + M.T) / 2)
+    if overwrite:
+        _rotate(X, k, U, k)
+        return lam, X
     return lam, X @ U

@@ -25,6 +25,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from . import fem
 from .errors import MeshError, SolverError
@@ -181,7 +182,7 @@ def _choose_method(method, r, k):
     return method
 
 
-def _solve_arpack(L, B, k, sigma, backend, rng):
+def _solve_arpack(L, B, k, sigma, backend, seed, tol=None, block=None):
     # machine precision: a looser ARPACK tolerance was seen to miss copies of multiple eigenvalues
     t0 = time.perf_counter()
     fac = factorize(L - sigma * B, backend=backend)
@@ -191,7 +192,7 @@ def _solve_arpack(L, B, k, sigma, backend, rng):
     ncv = min(n - 1, max(2 * k + 1, 20))
     try:
         lam, X = spla.eigsh(L, k=k, M=B, sigma=sigma, which="LM", OPinv=op, ncv=ncv, tol=0.0,
-                            v0=rng.standard_normal(n), maxiter=max(1000, 20 * k))
+                            v0=np.random.default_rng(seed).standard_normal(n), maxiter=max(1000, 20 * k))
     except spla.ArpackNoConvergence as e:
         raise SolverError(f"the eigensolver did not converge for k={k}: {e}") from e
     return lam, X, fac.backend, t1 - t0, time.perf_counter() - t1
@@ -206,10 +207,23 @@ def _solve_lanczos(L, B, k, sigma, backend, seed, tol, block):
     _, Xv, info = block_lanczos(L, B, fac.solve, k, sigma, block=block, tol=max(tol, 1e-14), seed=seed,
                                 refine=False)
     del fac  # free the factorization before the Rayleigh-Ritz (peak memory)
-    lam, X = rayleigh_ritz(L, B, Xv)
-    del Xv  # the Lanczos basis
+    lam, X = rayleigh_ritz(L, B, Xv, overwrite=True)  # in the memory of the basis
     log.info("block Lanczos: %s", info)
     return lam, X, used, t1 - t0, time.perf_counter() - t1
+
+
+def _permuted(A, perm):
+    """``A[perm][:, perm]`` as CSR (the format of the products with blocks of vectors)."""
+    return sp.csr_matrix(sp.csr_matrix(A)[perm][:, perm])
+
+
+def _unpermuted(X, perm, chunk=32):
+    """Rows of X back to the original numbering: ``out[perm] = X``, by column chunks (no second
+    n x k temporary beyond the result)."""
+    out = np.empty(X.shape, order="F")
+    for c in range(0, X.shape[1], chunk):
+        out[perm, c:c + chunk] = X[:, c:c + chunk]
+    return np.ascontiguousarray(out) if X.flags.c_contiguous else out
 
 
 def _solve_dense(L, B, k):
@@ -318,22 +332,33 @@ def _solve(L, B, k, method, sigma, backend, seed, tol, block):
     method = _choose_method(method, r, k)
     use_dense = method == "dense"
     s = float("nan") if use_dense else (_shift(B) if sigma is None else float(sigma))
-    rng = np.random.default_rng(seed)
+    perm, t_perm = None, 0.0
     if use_dense:
         lam, X, used, t_fac, t_sol = _solve_dense(L, B, k)
-    elif method == "arpack":
-        lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, rng)
     else:
-        lam, X, used, t_fac, t_sol = _solve_lanczos(L, B, k, s, backend, seed, tol, block)
-    order = np.argsort(lam)
-    lam, X = lam[order], X[:, order]
+        # renumber the vertices for memory locality (reverse Cuthill-McKee): the products with L and
+        # B, which read rows of blocks of vectors at the neighbours' indices, are 2x faster on meshes
+        # stored in a scattered order (decimated, remeshed); the results are numbered back
+        t0 = time.perf_counter()
+        perm = reverse_cuthill_mckee(sp.csr_matrix(L), symmetric_mode=True)
+        L, B = _permuted(L, perm), _permuted(B, perm)
+        t_perm = time.perf_counter() - t0
+        solver = _solve_arpack if method == "arpack" else _solve_lanczos
+        lam, X, used, t_fac, t_sol = solver(L, B, k, s, backend, seed, tol, block)
+    t0 = time.perf_counter()
+    order = np.argsort(lam, kind="stable")
+    if np.any(order != np.arange(len(lam))):
+        lam, X = lam[order], X[:, order]
     if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(X))):
         raise SolverError("the eigensolver returned non-finite values")
     if method != "lanczos":  # its Rayleigh-Ritz already made X B-orthonormal
         X = _b_orthonormalize(X, B)
-    X = _fix_signs(X)
     lam = np.maximum(lam, 0.0)
     res = _residuals(L, B, lam, X)
+    if perm is not None:
+        X = _unpermuted(X, perm)
+    X = _fix_signs(X)  # in the caller's numbering: "first entry on ties" is well defined there
+    t_sol += t_perm + time.perf_counter() - t0
     return lam, X, used, s, res, {"factorize": t_fac, "solve": t_sol, "cache": False}
 
 
