@@ -40,6 +40,20 @@ def test_restarts_and_small_blocks():
         np.testing.assert_allclose(X.T @ B @ X, np.eye(20), atol=1e-10)
 
 
+@pytest.mark.parametrize("mesh, k", [(torus(), 40), (icosphere(3), 36)])
+def test_locking_keeps_multiple_eigenvalues(mesh, k):
+    """Converged Ritz pairs locked at restarts: multiple eigenvalues (pairs, 2l+1 copies) are still
+    all found, the residuals stay below the tolerance, the result equals the dense solver's."""
+    L, B, sigma, solve = operators(mesh)
+    ref = o3dheat.eigensolve(mesh, k=k, method="dense").eigenvalues
+    lam, X, info = block_lanczos(L, B, solve, k, sigma, block=4, max_basis=k + 12)
+    assert info["restarts"] > 1 and 0 < info["locked"] < k
+    np.testing.assert_allclose(lam, ref, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(X.T @ B @ X, np.eye(k), atol=1e-10)
+    R = L @ X - (B @ X) * lam
+    assert np.linalg.norm(R, axis=0).max() < 1e-7 * abs(L).sum(axis=0).max()
+
+
 def test_reproducible():
     L, B, sigma, solve = operators(torus())
     a = block_lanczos(L, B, solve, 10, sigma, seed=3)
