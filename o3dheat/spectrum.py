@@ -40,9 +40,9 @@ log = logging.getLogger("o3dheat")
 MASS_KINDS = ("consistent", "lumped", "identity")
 DENSE_MAX_N = 1200
 DENSE_LIMIT_N = 12_000  # above this a dense solve needs several GiB: never chosen automatically
-# Measured (scripts/bench_spectrum.py): the block Lanczos wins from about 30k vertices; below,
+# Measured (scripts/bench_spectrum.py): the block Lanczos wins from about 10k vertices; below,
 # ARPACK's single-vector Lanczos on the same CHOLMOD factor needs fewer solves and less work.
-LANCZOS_MIN_N = 30_000
+LANCZOS_MIN_N = 10_000
 _CACHE_VERSION = "1"
 
 
@@ -182,7 +182,7 @@ def _choose_method(method, r, k):
     return method
 
 
-def _solve_arpack(L, B, k, sigma, backend, seed, tol=None, block=None):
+def _solve_arpack(L, B, k, sigma, backend, seed):
     # machine precision: a looser ARPACK tolerance was seen to miss copies of multiple eigenvalues
     t0 = time.perf_counter()
     fac = factorize(L - sigma * B, backend=backend)
@@ -259,7 +259,7 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         "lanczos": block shift-invert Lanczos (:func:`o3dheat.lanczos.block_lanczos`, the fast
         default); "arpack": SciPy's ``eigsh`` in shift-invert mode on the same factor; "dense":
         LAPACK on dense matrices. "auto" is dense for ``n <= 1200`` or ``k > n / 2``, "arpack"
-        below 30k vertices and "lanczos" from there on (where it is measured faster).
+        below 10k vertices and "lanczos" from there on (where it is measured faster).
     tol : float
         Relative residual asked of "lanczos" (see :func:`o3dheat.lanczos.block_lanczos`): the
         default 1e-8 gives eigenvectors to about 1e-8 over the relative gap and eigenvalues equal
@@ -343,8 +343,10 @@ def _solve(L, B, k, method, sigma, backend, seed, tol, block):
         perm = reverse_cuthill_mckee(sp.csr_matrix(L), symmetric_mode=True)
         L, B = _permuted(L, perm), _permuted(B, perm)
         t_perm = time.perf_counter() - t0
-        solver = _solve_arpack if method == "arpack" else _solve_lanczos
-        lam, X, used, t_fac, t_sol = solver(L, B, k, s, backend, seed, tol, block)
+        if method == "arpack":
+            lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, seed)
+        else:
+            lam, X, used, t_fac, t_sol = _solve_lanczos(L, B, k, s, backend, seed, tol, block)
     t0 = time.perf_counter()
     order = np.argsort(lam, kind="stable")
     if np.any(order != np.arange(len(lam))):
