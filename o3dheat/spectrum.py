@@ -199,10 +199,10 @@ def _solve_arpack(L, B, k, sigma, backend, seed):
 
 
 def _solve_lanczos(L, B, k, sigma, backend, seed, tol, block):
+    # L, B come renumbered in CSR (_permuted): the format of fast products with blocks of vectors
     t0 = time.perf_counter()
     fac = factorize(L - sigma * B, backend=backend)
     t1 = time.perf_counter()
-    L, B = sp.csr_matrix(L), sp.csr_matrix(B)  # faster products with blocks of vectors
     used = fac.backend
     _, Xv, info = block_lanczos(L, B, fac.solve, k, sigma, block=block, tol=max(tol, 1e-14), seed=seed,
                                 refine=False)
@@ -218,12 +218,12 @@ def _permuted(A, perm):
 
 
 def _unpermuted(X, perm, chunk=32):
-    """Rows of X back to the original numbering: ``out[perm] = X``, by column chunks (no second
-    n x k temporary beyond the result)."""
+    """Rows of X back to the original numbering: ``out[perm] = X``, by column chunks (no n x k
+    temporary beyond the result)."""
     out = np.empty(X.shape, order="F")
     for c in range(0, X.shape[1], chunk):
         out[perm, c:c + chunk] = X[:, c:c + chunk]
-    return np.ascontiguousarray(out) if X.flags.c_contiguous else out
+    return out
 
 
 def _solve_dense(L, B, k):
