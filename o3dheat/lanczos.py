@@ -25,7 +25,9 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sp
 
+from . import parallel
 from .errors import SolverError
 
 __all__ = ["block_lanczos", "rayleigh_ritz"]
@@ -45,21 +47,21 @@ def _runs(idx, gap=8):
     return list(zip(starts.tolist(), ends.tolist()))
 
 
-def _b_orthonormalize_block(W, B, rng, BW=None):
+def _b_orthonormalize_block(W, rows, rng, BW=None):
     """B-orthonormalize the columns of W (n, b): returns Q, R, BQ with W = Q R, Qᵀ B Q = I.
 
-    ``BW`` (= B W), when given, saves the sparse product; dependent columns are replaced by fresh
-    random ones (their R rows are then 0)."""
+    ``rows`` is a :class:`_Rows` of B. ``BW`` (= B W), when given, saves the sparse product;
+    dependent columns are replaced by fresh random ones (their R rows are then 0)."""
     for _ in range(3):
         if BW is None:
-            BW = B @ W
-        G = W.T @ BW
+            BW = rows.spmul(0, W)
+        G = rows.inner(W, BW)
         G = (G + G.T) / 2
         try:
             R = np.linalg.cholesky(G).T  # upper triangular
             if np.min(np.diag(R)) > 1e-10 * np.max(np.diag(R)):
                 Rinv = sla.lapack.dtrtri(R)[0]  # b x b: LAPACK directly (solve_triangular costs ms)
-                return W @ Rinv, R, BW @ Rinv
+                return rows.dot(W, Rinv), R, rows.dot(BW, Rinv)
         except np.linalg.LinAlgError:
             pass
         w, U = np.linalg.eigh(G)
@@ -71,18 +73,72 @@ def _b_orthonormalize_block(W, B, rng, BW=None):
 
 
 def _rotate(V, m, Z, p, rows=16384):
-    """In place, ``V[:, :p] = V[:, :m] @ Z[:, :p]``, by row chunks: no n x p temporary."""
-    for r0 in range(0, V.shape[0], rows):
-        V[r0:r0 + rows, :p] = V[r0:r0 + rows, :m] @ Z[:, :p]
+    """In place, ``V[:, :p] = V[:, :m] @ Z[:, :p]``, by row chunks (no n x p temporary), the
+    chunks shared out among threads."""
+    Zp = np.ascontiguousarray(Z[:, :p])
+    parallel.run(lambda a, z: V.__setitem__((slice(a, z), slice(0, p)), V[a:z, :m] @ Zp),
+                 parallel.row_parts(V.shape[0], rows))
 
 
-def _sub_bv(BY, BV, C):
+def _sub_bv(BY, BV, C, rows):
     """In place, ``BY -= [B V_older, B V_newer] @ C`` for the last ``len(C)`` (b or 2b) basis
     vectors (two products: no copy of the cached blocks into one array)."""
     b = BV[1].shape[1]
     if len(C) > b:
-        BY -= BV[0] @ C[:b]
-    BY -= BV[1] @ C[len(C) - b:]
+        rows.sub(BY, BV[0], C[:b])
+    rows.sub(BY, BV[1], C[len(C) - b:])
+
+
+class _Rows:
+    """Row-parallel kernels over the n rows of the basis (:func:`o3dheat.parallel.run` on fixed
+    parts of ``CHUNK`` rows; the reductions add the parts in order: thread-count independent)."""
+
+    def __init__(self, *mats):
+        self.n = mats[0].shape[0]
+        self.parts = parallel.row_parts(self.n)
+        # row blocks of the sparse matrices (CSR), one per part: products share out without copies
+        self.blocks = [[M[a:z] for a, z in self.parts] if len(self.parts) > 1 else [M] for M in mats]
+
+    def inner(self, X, Y):
+        """``X.T @ Y``."""
+        if len(self.parts) == 1:
+            return X.T @ Y
+        out = parallel.run(lambda a, z: X[a:z].T @ Y[a:z], self.parts)
+        for part in out[1:]:
+            out[0] += part
+        return out[0]
+
+    def sub(self, Y, X, C):
+        """In place, ``Y -= X @ C``."""
+        if len(self.parts) == 1:
+            Y -= X @ C
+            return
+        parallel.run(lambda a, z: np.subtract(Y[a:z], X[a:z] @ C, out=Y[a:z]), self.parts)
+
+    def dot(self, X, C):
+        """``X @ C`` (a new C-ordered array)."""
+        if len(self.parts) == 1:
+            return X @ C
+        out = np.empty((X.shape[0], C.shape[1]))
+        parallel.run(lambda a, z: np.matmul(X[a:z], C, out=out[a:z]), self.parts)
+        return out
+
+    def spmul(self, i, Y):
+        """``M_i @ Y`` for the i-th sparse matrix given at construction."""
+        blocks = self.blocks[i]
+        if len(blocks) == 1:
+            return blocks[0] @ Y
+        out = np.empty((self.n, Y.shape[1]))
+        parallel.run(lambda j, a, z: out.__setitem__(slice(a, z), blocks[j] @ Y),
+                     [(j, a, z) for j, (a, z) in enumerate(self.parts)])
+        return out
+
+    def copy(self, dst, src):
+        """``dst[...] = src`` (first touches of fresh memory are slow: share them out)."""
+        if len(self.parts) == 1:
+            dst[...] = src
+            return
+        parallel.run(lambda a, z: dst.__setitem__(slice(a, z), src[a:z]), self.parts)
 
 
 def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_restarts=100,
@@ -141,6 +197,11 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
     >>> lam.round(8).tolist()
     [0.0, 1.0, 2.0, 3.0, 4.0]
     """
+    with parallel.blas_one_thread():  # our own threads share out the big loops
+        return _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, seed, refine)
+
+
+def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, seed, refine):
     n = L.shape[0]
     b = int(max(1, min(block, n // 4 if n >= 8 else 1)))
     m_max = int(min(n - b, max_basis or max(2 * k, k + 4 * b)))
@@ -151,33 +212,34 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
     VT = np.empty((m_max + b, n))  # the basis, transposed: its first k rows can be kept in place
     V = VT.T
     T = np.zeros((m_max + b, m_max + b))
-    W, _, BW = _b_orthonormalize_block(rng.standard_normal((n, b)), B, rng)
+    rows = _Rows(sp.csr_matrix(B))
+    W, _, BW = _b_orthonormalize_block(rng.standard_normal((n, b)), rows, rng)
     BV = [None, BW]  # B times the last two blocks (older, newer): saves sparse products
     m = 0
     after_restart = False
     solves = restarts = biggest = steps = full = 0
     c, locked_nu = 0, np.zeros(0)  # locked (converged) Ritz vectors: V[:, :c], values locked_nu
     while True:
-        V[:, m:m + b] = W
+        rows.copy(V[:, m:m + b], W)
         m += b
         steps += 1
         biggest = max(biggest, m)
         Y = solve(BW)
         solves += b
-        BY = B @ Y
+        BY = rows.spmul(0, Y)
         # local orthogonalization: the last two blocks (all of the kept part right after a restart)
         lo = 0 if after_restart else max(0, m - 2 * b)
         Vl = V[:, lo:m]
-        Cl = Vl.T @ BY
-        Y -= Vl @ Cl
+        Cl = rows.inner(Vl, BY)
+        rows.sub(Y, Vl, Cl)
         if after_restart:
-            BY = B @ Y
+            BY = rows.spmul(0, Y)
         else:
             BV = [BV[1], BW]
-            _sub_bv(BY, BV, Cl)
+            _sub_bv(BY, BV, Cl, rows)
         # measure the loss of orthogonality against the whole basis (one pass); restore it with
         # one update when it exceeds sqrt(eps) (the coefficients are then small: no second pass)
-        C = V[:, :m].T @ BY
+        C = rows.inner(V[:, :m], BY)
         ynorm = np.sqrt(np.maximum(np.einsum("ij,ij->j", Y, BY), 1e-300))
         rel = np.max(np.abs(C[:lo]) / ynorm, axis=1, initial=0.0)
         if after_restart or np.max(rel, initial=0.0) > _SEMI:
@@ -185,17 +247,17 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
             # partial re-orthogonalization (Simon 1984): only against the basis vectors whose
             # coefficient exceeds eps^(3/4), in contiguous runs, plus the local blocks
             for a, z in _runs(np.flatnonzero(rel > _ETA)):
-                Y -= V[:, a:z] @ C[a:z]
-            Y -= Vl @ C[lo:m]
-            BY = B @ Y
+                rows.sub(Y, V[:, a:z], C[a:z])
+            rows.sub(Y, Vl, C[lo:m])
+            BY = rows.spmul(0, Y)
         else:
-            Y -= Vl @ C[lo:m]
-            _sub_bv(BY, BV, C[lo:m])
+            rows.sub(Y, Vl, C[lo:m])
+            _sub_bv(BY, BV, C[lo:m], rows)
         if after_restart:  # the new block is not a neighbour of the kept part: refill the cache
             BV = [None, BW]
         after_restart = False
         T[lo:m, m - b:m] = Cl + C[lo:m]
-        W, R, BW = _b_orthonormalize_block(Y, B, rng, BY)
+        W, R, BW = _b_orthonormalize_block(Y, rows, rng, BY)
         done_filling = m + b > m_max
         if m < k + b and not done_filling:
             continue
@@ -267,12 +329,14 @@ def rayleigh_ritz(L, B, X, chunk=32, overwrite=False):
     k = X.shape[1]
     A = np.empty((k, k))
     M = np.empty((k, k))
-    for c in range(0, k, chunk):
-        Xc = np.ascontiguousarray(X[:, c:c + chunk])  # sparse products are 2-3x faster on C order
-        A[:, c:c + chunk] = X.T @ (L @ Xc)
-        M[:, c:c + chunk] = X.T @ (B @ Xc)
-    lam, U = sla.eigh((A + A.T) / 2, (M + M.T) / 2)
-    if overwrite:
-        _rotate(X, k, U, k)
-        return lam, X
-    return lam, X @ U
+    rows = _Rows(sp.csr_matrix(L), sp.csr_matrix(B))
+    with parallel.blas_one_thread():
+        for c in range(0, k, chunk):
+            Xc = np.ascontiguousarray(X[:, c:c + chunk])  # sparse products are 2-3x faster on C order
+            A[:, c:c + chunk] = rows.inner(X, rows.spmul(0, Xc))
+            M[:, c:c + chunk] = rows.inner(X, rows.spmul(1, Xc))
+        lam, U = sla.eigh((A + A.T) / 2, (M + M.T) / 2)
+        if overwrite:
+            _rotate(X, k, U, k)
+            return lam, X
+        return lam, rows.dot(X, U)

@@ -27,7 +27,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from . import fem
+from . import fem, parallel
 from .errors import MeshError, SolverError
 from .lanczos import block_lanczos, rayleigh_ritz
 from .linalg import factorize
@@ -40,9 +40,11 @@ log = logging.getLogger("o3dheat")
 MASS_KINDS = ("consistent", "lumped", "identity")
 DENSE_MAX_N = 1200
 DENSE_LIMIT_N = 12_000  # above this a dense solve needs several GiB: never chosen automatically
-# Measured (scripts/bench_spectrum.py): the block Lanczos wins from about 10k vertices; below,
-# ARPACK's single-vector Lanczos on the same CHOLMOD factor needs fewer solves and less work.
+# Measured (scripts/bench_spectrum.py, 2 cores): the block Lanczos wins from about 10k vertices,
+# and from 3k when k >= 64 (1.1-2x at 3k-8k, k = 70-100); below, ARPACK's single-vector Lanczos on
+# the same CHOLMOD factor needs fewer solves and less work (10-20% faster for k = 10-50).
 LANCZOS_MIN_N = 10_000
+LANCZOS_MANY_K = (64, 3_000)  # (k, n): from k eigenpairs on n vertices up, Lanczos as well
 _CACHE_VERSION = "1"
 
 
@@ -130,17 +132,21 @@ def _fix_signs(X):
     return X
 
 
-def _residuals(L, B, lam, X, chunk=32):
-    """Normwise backward errors, computed in column chunks (no n x k temporaries)."""
+def _residuals(L, B, lam, X, chunk=16):
+    """Normwise backward errors, computed in column chunks (no n x k temporaries), the chunks
+    shared out among threads (each column is computed whole by one thread)."""
     nL = abs(L).sum(axis=0).max()
     nB = abs(B).sum(axis=0).max()
-    out = np.empty(X.shape[1])
-    for c in range(0, X.shape[1], chunk):
+    L, B = sp.csr_matrix(L), sp.csr_matrix(B)
+
+    def backward_errors(c):
         Xc = np.ascontiguousarray(X[:, c:c + chunk])
         R = L @ Xc - (B @ Xc) * lam[c:c + chunk]
-        out[c:c + chunk] = np.linalg.norm(R, axis=0) / (
-            (nL + np.abs(lam[c:c + chunk]) * nB) * np.linalg.norm(Xc, axis=0) + 1e-300)
-    return out
+        return np.linalg.norm(R, axis=0) / ((nL + np.abs(lam[c:c + chunk]) * nB) * np.linalg.norm(Xc, axis=0)
+                                            + 1e-300)
+
+    parts = parallel.run(backward_errors, [(c,) for c in range(0, X.shape[1], chunk)])
+    return np.concatenate(parts) if parts else np.empty(0)
 
 
 def _b_orthonormalize(X, B):
@@ -170,7 +176,8 @@ def _cache_key(V, F, k, mass, method):
 
 def _choose_method(method, r, k):
     """"dense", "arpack" or "lanczos" for r vertices and k eigenpairs (see eigensolve)."""
-    iterative = "lanczos" if r >= LANCZOS_MIN_N else "arpack"
+    many_k = k >= LANCZOS_MANY_K[0] and r >= LANCZOS_MANY_K[1]
+    iterative = "lanczos" if r >= LANCZOS_MIN_N or many_k else "arpack"
     if method == "auto":
         method = "dense" if (r <= DENSE_MAX_N or k > r // 2) and r <= DENSE_LIMIT_N else iterative
     if k >= r - 1:
@@ -258,8 +265,9 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     method : {"auto", "lanczos", "arpack", "dense"}
         "lanczos": block shift-invert Lanczos (:func:`o3dheat.lanczos.block_lanczos`, the fast
         default); "arpack": SciPy's ``eigsh`` in shift-invert mode on the same factor; "dense":
-        LAPACK on dense matrices. "auto" is dense for ``n <= 1200`` or ``k > n / 2``, "arpack"
-        below 10k vertices and "lanczos" from there on (where it is measured faster).
+        LAPACK on dense matrices. "auto" is dense for ``n <= 1200`` or ``k > n / 2``, "lanczos"
+        from 10k vertices (and from 3k when ``k >= 64``), "arpack" otherwise (where each is
+        measured faster).
     tol : float
         Relative residual asked of "lanczos" (see :func:`o3dheat.lanczos.block_lanczos`): the
         default 1e-8 gives eigenvectors to about 1e-8 over the relative gap and eigenvalues equal

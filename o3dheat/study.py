@@ -20,8 +20,8 @@ Execution: one task per (mesh, resampling) that computes its spectra once; on a 
 cluster by default, in-process with ``scheduler="sequential"``, or on any cluster by address.
 Each task's rows are written to ``out/tasks/`` as soon as it finishes, so an interrupted study
 resumes where it stopped; a failing task becomes a row with its error and does not stop the
-study. All computations run with one BLAS thread, so a sequential and a distributed run give
-the same table, bit for bit.
+study. All computations run with one BLAS thread and one o3dheat thread (the workers are the
+parallelism), so a sequential and a distributed run give the same table, bit for bit.
 """
 
 from __future__ import annotations
@@ -107,9 +107,10 @@ def _reference(V, F, cfg):
 
     from .fem import mass_matrix
     from .kernel import HeatKernel
+    from .parallel import threads
     from .spectrum import eigensolve
 
-    with threadpool_limits(1):
+    with threadpool_limits(1), threads(1):
         axis = int(np.argmax(np.ptp(V, axis=0)))
         spec = eigensolve((V, F), k=min(cfg["k"], len(V) - 2))
         times = HeatKernel(spec).scales(cfg["scales"])
@@ -134,11 +135,12 @@ def _task(mesh_name, res_name, spec, ref, cfg):
     """Rows of one (mesh, resampling) unit; errors become one row with the message."""
     from threadpoolctl import threadpool_limits
 
+    from .parallel import threads
     from .sampling import resample, transfer
 
     kind = spec["kind"]
     try:
-        with threadpool_limits(1):
+        with threadpool_limits(1), threads(1):
             params = {key: v for key, v in spec.items() if key not in ("kind", "name")}
             r = resample((ref["V"], ref["F"]), kind, **params)
             desc = _descriptors(r.V, r.F, cfg["kernels"], cfg["descriptors"], cfg["k"], ref["times"], ref["axis"])

@@ -232,3 +232,15 @@ def test_eigensolve_operators_matches_eigensolve():
         eigensolve_operators(sp.triu(ref.stiffness), ref.mass, k=3)
     with pytest.raises(o3dheat.MeshError, match="exceeds"):
         eigensolve_operators(ref.stiffness, ref.mass, k=10**6)
+
+
+def test_auto_method_follows_the_measured_crossovers():
+    from o3dheat.spectrum import _choose_method
+
+    assert _choose_method("auto", 1000, 10) == "dense"
+    assert _choose_method("auto", 5000, 30) == "arpack"
+    assert _choose_method("auto", 5000, 100) == "lanczos"  # many eigenpairs: blocks pay off early
+    assert _choose_method("auto", 2500, 100) == "arpack"
+    assert _choose_method("auto", 20000, 10) == "lanczos"
+    assert _choose_method("auto", 5000, 4999) == "dense"
+    assert _choose_method("arpack", 50000, 10) == "arpack"

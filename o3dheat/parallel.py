@@ -1,0 +1,213 @@
+"""o3dheat's own threads: how many, one shared pool, and row-parallel loops with reproducible sums.
+
+Why our own threads: the solves on a CHOLMOD factor and the passes over a Lanczos basis are
+memory- or latency-bound loops that numpy/BLAS and CHOLMOD run on one core (or, for BLAS, on
+threads that keep spinning between calls and then steal the core from everything else). o3dheat
+runs them on a pool of threads instead (numpy, BLAS, scipy's sparse products and CHOLMOD through
+``ctypes`` all release the GIL), with BLAS pinned to one thread meanwhile (:func:`blas_one_thread`).
+
+Reproducibility: a row-parallel reduction (for example ``X.T @ Y`` over the rows) is cut into
+parts of :data:`CHUNK` rows whatever the number of threads, and the partial results are added in
+the order of the parts: results are bit-identical for every thread count.
+
+The number of threads is :func:`get_threads`: the value set by :func:`threads` in the calling
+thread, else the environment variable ``O3DHEAT_NUM_THREADS``, else the CPUs this process may run
+on (at most 8).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+from .errors import SolverError
+
+__all__ = ["CHUNK", "blas_one_thread", "get_threads", "row_parts", "run", "threads"]
+
+CHUNK = 1 << 14  # rows per part of a row-parallel loop (fixed: sums do not depend on the threads)
+_MAX_THREADS = 8
+_LOCAL = threading.local()  # .threads: set by threads() for the calling thread
+_PREFIX = "o3dheat-pool"
+_POOL = None  # (pid, ThreadPoolExecutor): recreated in a forked child (threads do not survive a fork)
+
+
+def get_threads():
+    """Number of threads o3dheat's parallel loops use.
+
+    The value set by :func:`threads` in the calling thread if any, else the environment variable
+    ``O3DHEAT_NUM_THREADS``, else the number of CPUs this process may run on (at most 8).
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    SolverError
+        ``O3DHEAT_NUM_THREADS`` is not a positive integer.
+
+    Examples
+    --------
+    >>> from o3dheat.parallel import get_threads, threads
+    >>> with threads(1):
+    ...     get_threads()
+    1
+    """
+    value = getattr(_LOCAL, "threads", None)
+    if value is not None:
+        return value
+    env = os.environ.get("O3DHEAT_NUM_THREADS", "").strip()
+    if env:
+        return _check(env, "O3DHEAT_NUM_THREADS")
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cpus = os.cpu_count() or 1
+    return max(1, min(cpus, _MAX_THREADS))
+
+
+def _check(n, what):
+    try:
+        value = int(n)
+    except (TypeError, ValueError):
+        value = 0
+    if isinstance(n, bool) or value < 1 or (not isinstance(n, str) and value != n):
+        raise SolverError(f"{what} must be a positive integer, got {n!r}")
+    return min(value, _MAX_THREADS)
+
+
+@contextlib.contextmanager
+def threads(n):
+    """Run o3dheat's parallel loops on ``n`` threads inside a ``with`` block, for the loops the
+    calling thread starts (other threads keep their own setting: a Dask worker thread can ask for
+    one thread without affecting its neighbours).
+
+    Results do not depend on ``n`` (see the module notes); ``n = 1`` runs everything in the
+    calling thread.
+
+    Parameters
+    ----------
+    n : int
+        At least 1 (at most 8 are used).
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.sparse as sp
+    >>> from o3dheat.linalg import factorize
+    >>> from o3dheat.parallel import threads
+    >>> f = factorize(sp.diags([2.0, 4.0]).tocsc())
+    >>> with threads(1):
+    ...     f.solve(np.ones((2, 3))).tolist()
+    [[0.5, 0.5, 0.5], [0.25, 0.25, 0.25]]
+    """
+    value = _check(n, "the number of threads")
+    old = getattr(_LOCAL, "threads", None)
+    _LOCAL.threads = value
+    try:
+        yield
+    finally:
+        _LOCAL.threads = old
+
+
+def _pool():
+    global _POOL
+    if _POOL is None or _POOL[0] != os.getpid():
+        _POOL = (os.getpid(), ThreadPoolExecutor(max_workers=_MAX_THREADS - 1, thread_name_prefix=_PREFIX))
+    return _POOL[1]
+
+
+def row_parts(n, chunk=None):
+    """The half-open row ranges ``(a, z)`` of a row-parallel loop over ``n`` rows.
+
+    Parameters
+    ----------
+    n : int
+    chunk : int, optional
+        Rows per part (default :data:`CHUNK`).
+
+    Returns
+    -------
+    list of (int, int)
+
+    Examples
+    --------
+    >>> row_parts(40000)
+    [(0, 16384), (16384, 32768), (32768, 40000)]
+    """
+    chunk = chunk or CHUNK
+    return [(a, min(a + chunk, n)) for a in range(0, max(n, 1), chunk)]
+
+
+def run(fn, items, threads=None):
+    """``[fn(*item) for item in items]``, the items shared out in contiguous groups among threads.
+
+    The calling thread takes the first group. The results come back in the order of ``items``;
+    the first exception raised is re-raised once every thread has finished. Called from one of
+    the pool's own threads, it runs everything in that thread (no nesting, no deadlock).
+
+    Parameters
+    ----------
+    fn : callable
+        Must release the GIL to gain anything (numpy, BLAS, sparse products, ctypes calls do).
+    items : sequence of tuples
+        Arguments of each call.
+    threads : int, optional
+        At most this many threads (default :func:`get_threads`).
+
+    Returns
+    -------
+    list
+
+    Examples
+    --------
+    >>> run(lambda a, z: z - a, row_parts(40000))
+    [16384, 16384, 7232]
+    """
+    items = list(items)
+    t = min(get_threads() if threads is None else threads, len(items))
+    if t <= 1 or threading.current_thread().name.startswith(_PREFIX):  # never nested in the pool
+        return [fn(*item) for item in items]
+    cuts = [round(i * len(items) / t) for i in range(t + 1)]
+
+    def group(g):
+        return [fn(*item) for item in items[cuts[g]:cuts[g + 1]]]
+
+    futures = [_pool().submit(group, g) for g in range(1, t)]
+    error, out = None, []
+    try:
+        out = group(0)
+    except BaseException as e:  # noqa: BLE001 - re-raised below, after the other threads
+        error = e
+    for f in futures:
+        try:
+            out += f.result()
+        except BaseException as e:  # noqa: BLE001
+            error = error or e
+    if error is not None:
+        raise error
+    return out
+
+
+@contextlib.contextmanager
+def blas_one_thread():
+    """BLAS (numpy's and scipy's OpenBLAS, MKL, ...) limited to one thread inside a ``with``.
+
+    For loops that o3dheat parallelizes itself: two thread pools on the same cores slow each
+    other down, and OpenBLAS threads spin for a while after each call.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> with blas_one_thread():
+    ...     float(np.ones((2, 2)) @ np.ones(2) @ np.ones(2))
+    4.0
+    """
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # a dependency; without it BLAS keeps its threads
+        yield
+        return
+    with threadpool_limits(1, user_api="blas"):
+        yield
