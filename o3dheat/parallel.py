@@ -195,7 +195,10 @@ def blas_one_thread():
     """BLAS (numpy's and scipy's OpenBLAS, MKL, ...) limited to one thread inside a ``with``.
 
     For loops that o3dheat parallelizes itself: two thread pools on the same cores slow each
-    other down, and OpenBLAS threads spin for a while after each call.
+    other down, and OpenBLAS threads spin for a while after each call. Through threadpoolctl
+    (>= 3.8), which lets one Python thread at a time control OpenBLAS' process-wide setting:
+    called from another thread while that one is alive, the limit is not applied (results are
+    the same, only slower), and overlapping blocks cannot leave a wrong setting behind.
 
     Examples
     --------

@@ -83,11 +83,22 @@ def test_nested_run_does_not_deadlock():
         assert parallel.run(inner, [(i,) for i in range(16)]) == [6] * 16
 
 
-def test_blas_one_thread():
+def _blas_threads():
     from threadpoolctl import threadpool_info
 
-    with parallel.blas_one_thread():
-        assert all(p["num_threads"] == 1 for p in threadpool_info() if p["user_api"] == "blas")
+    return [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+
+
+def test_blas_one_thread_and_back():
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(2, user_api="blas"):
+        before = _blas_threads()
+        if max(before) < 2:
+            pytest.skip("BLAS runs one thread here anyway")
+        with parallel.blas_one_thread():
+            assert set(_blas_threads()) == {1}
+        assert _blas_threads() == before
 
 
 def _child(q):
