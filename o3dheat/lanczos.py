@@ -18,7 +18,10 @@ Design choices, each measured on 200k-vertex meshes (see ``scripts/bench_spectru
 * convergence per Ritz pair from the Lanczos residual ``ρ = ‖R_m z_last‖_B <= tol |ν|`` (free:
   no operator application), which needs no gap and so holds for multiple eigenvalues too;
 * final eigenvalues are exact Rayleigh quotients: a Rayleigh-Ritz of (L, B) in the span of the
-  Ritz vectors, which also makes them B-orthonormal to rounding.
+  Ritz vectors, which also makes them B-orthonormal to rounding;
+* the passes over the basis, the sparse products and the restarts run on o3dheat's threads by
+  blocks of rows (:mod:`o3dheat.parallel`), BLAS pinned to one thread meanwhile; sums over the
+  rows are taken block by block in a fixed order, so results do not depend on the thread count.
 """
 
 from __future__ import annotations
@@ -96,7 +99,8 @@ class _Rows:
     def __init__(self, *mats):
         self.n = mats[0].shape[0]
         self.parts = parallel.row_parts(self.n)
-        # row blocks of the sparse matrices (CSR), one per part: products share out without copies
+        # row blocks of the sparse matrices (CSR), one per part (one copy of each matrix, made
+        # once): the products with them are then shared out like the dense passes
         self.blocks = [[M[a:z] for a, z in self.parts] if len(self.parts) > 1 else [M] for M in mats]
 
     def inner(self, X, Y):
