@@ -334,7 +334,8 @@ def factorize(A, backend="auto", mode="simplicial"):
     Raises
     ------
     SolverError
-        The requested backend is missing or every backend failed.
+        ``A`` is not square or has non-finite entries, the requested backend is missing, or
+        every backend failed.
 
     Examples
     --------
@@ -350,6 +351,11 @@ def factorize(A, backend="auto", mode="simplicial"):
     else:
         raise SolverError(f"unknown backend {backend!r}: use 'auto' or one of {BACKENDS}")
     A = sp.csc_matrix(A, dtype=np.float64)
+    if A.shape[0] != A.shape[1]:
+        raise SolverError(f"the matrix to factorize must be square, got shape {A.shape}")
+    if not np.all(np.isfinite(A.data)):
+        raise SolverError("the matrix to factorize has NaN or infinite entries: check the mesh "
+                          "coordinates and the shift")
     errors = []
     for name in order:
         try:

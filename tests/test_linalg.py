@@ -116,3 +116,13 @@ def test_wrong_right_hand_side_is_named(spd):
     f = la.factorize(spd)
     with pytest.raises(SolverError, match="rows"):
         f.solve(np.ones(spd.shape[0] + 1))
+
+
+@pytest.mark.parametrize("A, match", [
+    (sp.csc_matrix(np.ones((3, 2))), "square"),
+    (sp.diags([1.0, np.nan, 2.0], format="csc"), "NaN or infinite"),
+    (sp.diags([1.0, np.inf, 2.0], format="csc"), "NaN or infinite"),
+])
+def test_bad_matrices_are_named(A, match):
+    with pytest.raises(SolverError, match=match):
+        la.factorize(A)
