@@ -123,12 +123,17 @@ def default_cache_dir():
     return Path(env) if env else Path.home() / ".cache" / "o3dheat"
 
 
-def _fix_signs(X):
-    """In place: the entry of largest magnitude of each column becomes positive."""
-    idx = np.argmax(np.abs(X), axis=0)
-    s = np.sign(X[idx, np.arange(X.shape[1])])
-    s[s == 0] = 1.0
-    X *= s
+def _fix_signs(X, chunk=16):
+    """In place: the entry of largest magnitude of each column becomes positive (the first one on
+    ties). By column chunks shared out among threads: no n x k temporary."""
+
+    def fix(c):
+        Xc = X[:, c:c + chunk]
+        s = np.sign(Xc[np.argmax(np.abs(Xc), axis=0), np.arange(Xc.shape[1])])
+        s[s == 0] = 1.0
+        Xc *= s
+
+    parallel.run(fix, [(c,) for c in range(0, X.shape[1], chunk)])
     return X
 
 
@@ -226,10 +231,10 @@ def _permuted(A, perm):
 
 def _unpermuted(X, perm, chunk=32):
     """Rows of X back to the original numbering: ``out[perm] = X``, by column chunks (no n x k
-    temporary beyond the result)."""
+    temporary beyond the result) shared out among threads."""
     out = np.empty(X.shape, order="F")
-    for c in range(0, X.shape[1], chunk):
-        out[perm, c:c + chunk] = X[:, c:c + chunk]
+    parallel.run(lambda c: out.__setitem__((perm, slice(c, c + chunk)), X[:, c:c + chunk]),
+                 [(c,) for c in range(0, X.shape[1], chunk)])
     return out
 
 
