@@ -220,8 +220,9 @@ class _CholmodFactor:
         n = A.shape[0]
         if A.nnz >= 2**31 - 1:
             raise OverflowError("more than 2^31 nonzeros")
-        A.sort_indices()
-        p, i = A.indptr.astype(np.int32), A.indices.astype(np.int32)
+        if not A.has_sorted_indices:
+            A = A.sorted_indices()  # a copy: the caller's arrays are never reordered
+        p, i = np.asarray(A.indptr, dtype=np.int32), np.asarray(A.indices, dtype=np.int32)
         x = np.ascontiguousarray(A.data, dtype=np.float64)
         S = _Sparse(n, n, len(i), p.ctypes.data, i.ctypes.data, None, x.ctypes.data, None,
                     _LOWER, _INT, _REAL, _DOUBLE, 1, 1)

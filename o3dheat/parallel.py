@@ -119,7 +119,8 @@ def _pool():
 
 
 def row_parts(n, chunk=None):
-    """The half-open row ranges ``(a, z)`` of a row-parallel loop over ``n`` rows.
+    """The half-open row ranges ``(a, z)`` of a row-parallel loop over ``n`` rows (or of any
+    ``n`` items, for example the columns of an array).
 
     Parameters
     ----------

@@ -127,13 +127,13 @@ def _fix_signs(X, chunk=16):
     """In place: the entry of largest magnitude of each column becomes positive (the first one on
     ties). By column chunks shared out among threads: no n x k temporary."""
 
-    def fix(c):
-        Xc = X[:, c:c + chunk]
+    def fix(a, z):
+        Xc = X[:, a:z]
         s = np.sign(Xc[np.argmax(np.abs(Xc), axis=0), np.arange(Xc.shape[1])])
         s[s == 0] = 1.0
         Xc *= s
 
-    parallel.run(fix, [(c,) for c in range(0, X.shape[1], chunk)])
+    parallel.run(fix, parallel.row_parts(X.shape[1], chunk))  # ranges of columns
     return X
 
 
@@ -144,14 +144,12 @@ def _residuals(L, B, lam, X, chunk=16):
     nB = abs(B).sum(axis=0).max()
     L, B = sp.csr_matrix(L), sp.csr_matrix(B)
 
-    def backward_errors(c):
-        Xc = np.ascontiguousarray(X[:, c:c + chunk])
-        R = L @ Xc - (B @ Xc) * lam[c:c + chunk]
-        return np.linalg.norm(R, axis=0) / ((nL + np.abs(lam[c:c + chunk]) * nB) * np.linalg.norm(Xc, axis=0)
-                                            + 1e-300)
+    def backward_errors(a, z):
+        Xc = np.ascontiguousarray(X[:, a:z])
+        R = L @ Xc - (B @ Xc) * lam[a:z]
+        return np.linalg.norm(R, axis=0) / ((nL + np.abs(lam[a:z]) * nB) * np.linalg.norm(Xc, axis=0) + 1e-300)
 
-    parts = parallel.run(backward_errors, [(c,) for c in range(0, X.shape[1], chunk)])
-    return np.concatenate(parts) if parts else np.empty(0)
+    return np.concatenate(parallel.run(backward_errors, parallel.row_parts(X.shape[1], chunk)))
 
 
 def _b_orthonormalize(X, B):
@@ -233,8 +231,8 @@ def _unpermuted(X, perm, chunk=32):
     """Rows of X back to the original numbering: ``out[perm] = X``, by column chunks (no n x k
     temporary beyond the result) shared out among threads."""
     out = np.empty(X.shape, order="F")
-    parallel.run(lambda c: out.__setitem__((perm, slice(c, c + chunk)), X[:, c:c + chunk]),
-                 [(c,) for c in range(0, X.shape[1], chunk)])
+    parallel.run(lambda a, z: out.__setitem__((perm, slice(a, z)), X[:, a:z]),
+                 parallel.row_parts(X.shape[1], chunk))  # ranges of columns
     return out
 
 

@@ -126,3 +126,14 @@ def test_wrong_right_hand_side_is_named(spd):
 def test_bad_matrices_are_named(A, match):
     with pytest.raises(SolverError, match=match):
         la.factorize(A)
+
+
+def test_the_input_matrix_is_not_reordered():
+    A = sp.csc_matrix(np.array([[4.0, 1, 0], [1, 4, 1], [0, 1, 4]]))
+    A.indices[:2], A.data[:2] = A.indices[:2][::-1].copy(), A.data[:2][::-1].copy()
+    A.has_sorted_indices = False
+    before = A.indices.copy(), A.data.copy()
+    x = la.factorize(A).solve(np.ones(3))
+    np.testing.assert_array_equal(A.indices, before[0])
+    np.testing.assert_array_equal(A.data, before[1])
+    np.testing.assert_allclose(A @ x, 1.0, rtol=1e-12)
