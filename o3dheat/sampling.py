@@ -8,7 +8,7 @@ source; all deterministic, seeded where random):
 * :func:`remesh`: isotropic explicit remeshing (pymeshlab), a uniform sampling;
 * :func:`anisotropic`: one half of the surface coarse and the other fine (pymeshlab remeshing of
   each half), the strongly non-uniform density of the paper's irregular examples;
-* :func:`jitter`: vertices moved at random in their tangent planes;
+* :func:`jitter`: vertices moved at random in their tangent planes, no face folded;
 * :func:`subdivide`: midpoint (same surface) or Loop subdivision.
 
 Transfers: :func:`transfer` evaluates the PL function of one sampling at the vertices of another
@@ -294,21 +294,84 @@ def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6):
                                              "iterations": int(iterations)})
 
 
+_JITTER_MIN_AREA = 0.1  # least (new area projected on the original plane) / (original area) of a jittered face
+_JITTER_HALVINGS = 8  # rounds that halve the moves of the vertices of failing faces, before zeroing them
+
+
+def _face_cross(V, F):
+    """Cross products ``(b - a) x (c - a)`` of the faces: twice the area times the unit normal."""
+    return np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+
+
+def _failing_faces(V, F, n0, nn0, D):
+    """Faces whose triangle, moved by ``D``, keeps less than ``_JITTER_MIN_AREA`` of its original area
+    when projected on its original plane (``n_new . n_old < min * |n_old|^2``); unmoved faces pass."""
+    n1 = _face_cross(V + D, F)
+    return np.einsum("ij,ij->i", n1, n0) < _JITTER_MIN_AREA * nn0
+
+
+def _limit_moves(V, F, d, s):
+    """Shrink the per-vertex scales ``s`` of the moves ``d`` until no face fails (see :func:`jitter`).
+
+    Faces of zero area (relative to the mean edge length) are never checked: their vertices must
+    come with ``s = 0``. Returns the final scales (a new array)."""
+    s = s.copy()
+    n0 = _face_cross(V, F)
+    nn0 = np.einsum("ij,ij->i", n0, n0)
+    for _ in range(_JITTER_HALVINGS):
+        bad = _failing_faces(V, F, n0, nn0, s[:, None] * d)
+        if not bad.any():
+            return s
+        s[F[bad].reshape(-1)] *= 0.5
+    # last resort: keep the vertices of the failing faces in place. A face whose three vertices stay
+    # is the original one (V + 0 d == V exactly) and passes, so every round zeroes at least one
+    # moving vertex: at most n rounds, and the result has no failing face by construction.
+    while True:
+        bad = _failing_faces(V, F, n0, nn0, s[:, None] * d)
+        if not bad.any():
+            return s
+        s[F[bad].reshape(-1)] = 0.0
+
+
 def jitter(mesh, amount=0.3, seed=0):
-    """Move every vertex at random in its tangent plane (same connectivity, new sample positions).
+    """Move every vertex at random in its tangent plane, never folding a face.
+
+    Same connectivity, new sample positions. Each vertex gets a Gaussian proposal (standard
+    deviation ``amount`` x the mean edge length ``h`` per coordinate, projected on the plane
+    normal to its area-weighted vertex normal), which is then shrunk where it would spoil a face:
+    while some face, once moved, keeps less than 10 % of its original area when projected on its
+    original plane, the moves of that face's vertices are halved (8 rounds at most), then set to 0.
+
+    Guarantee, for any ``amount`` and ``seed``: every face of positive area keeps
+    ``n_new . n_old >= 0.1 |n_old|^2`` (``n`` the cross product of two edges, twice the area times
+    the unit normal), so no face flips (its normal turns by less than 90 degrees) and none gets
+    near-degenerate (its new area is at least 10 % of the original). Faces of zero area in the
+    input (below ``1e-12 h^2``) keep their vertices in place, and so do unreferenced vertices. It
+    does not rule out self-intersections between faces that do not share a vertex.
 
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
     amount : float
-        Standard deviation of the displacement as a fraction of the mean edge length (< 0.5 keeps
-        the triangles from folding in practice).
+        Standard deviation of the proposed displacement, per tangent direction, as a fraction of
+        the mean edge length (>= 0). On a mesh without thin triangles the limiter seldom acts
+        below about 0.1; large amounts (> 1) are shrunk almost everywhere (the mean move then
+        stays a fraction of an edge length, see ``moved_mean``).
     seed : int
 
     Returns
     -------
     Resampled
-        ``vertex_map`` is the identity.
+        ``vertex_map`` is the identity. ``params`` holds ``amount`` and ``seed`` and, as plain
+        floats and ints, ``moved_mean`` and ``moved_max`` (the mean and largest vertex
+        displacement in units of the mean edge length), ``limited`` (referenced vertices whose
+        move was shrunk, including those kept in place), ``frozen`` (referenced vertices kept in
+        place) and ``degenerate`` (faces of zero area, skipped).
+
+    Raises
+    ------
+    MeshError
+        ``amount`` negative, not finite, or so large that the displacements overflow.
 
     Examples
     --------
@@ -318,15 +381,39 @@ def jitter(mesh, amount=0.3, seed=0):
     >>> a, b = jitter(m, 0.2, seed=1), jitter(m, 0.2, seed=1)
     >>> bool(np.array_equal(a.V, b.V)), bool(abs(np.linalg.norm(a.V, axis=1) - 1).max() < 0.01)
     (True, True)
+    >>> r = jitter(m, 3.0)                          # a large amount: shrunk moves, still no fold
+    >>> F, V0 = r.F, m.vertex.positions.numpy()
+    >>> n0 = np.cross(V0[F[:, 1]] - V0[F[:, 0]], V0[F[:, 2]] - V0[F[:, 0]])
+    >>> n1 = np.cross(r.V[F[:, 1]] - r.V[F[:, 0]], r.V[F[:, 2]] - r.V[F[:, 0]])
+    >>> bool((np.einsum("ij,ij->i", n1, n0) >= 0.1 * np.einsum("ij,ij->i", n0, n0)).all())
+    True
+    >>> sorted(r.params)
+    ['amount', 'degenerate', 'frozen', 'limited', 'moved_max', 'moved_mean', 'seed']
     """
     V, F = as_arrays(mesh)
     if not (np.isfinite(amount) and amount >= 0):
         raise MeshError(f"amount must be >= 0, got {amount}")
     N = _vertex_normals(V, F)
     h = float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
-    d = np.random.default_rng(seed).standard_normal(V.shape) * amount * h
-    d -= np.einsum("ij,ij->i", d, N)[:, None] * N  # tangential
-    return Resampled(V + d, F.copy(), "jitter", {"amount": float(amount), "seed": int(seed)}, np.arange(len(V)))
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow: reported below
+        d = np.random.default_rng(seed).standard_normal(V.shape) * amount * h
+        d -= np.einsum("ij,ij->i", d, N)[:, None] * N  # tangential
+    if not np.all(np.isfinite(d)):
+        raise MeshError(f"amount {amount} is too large: the displacements overflow")
+    used = np.zeros(len(V), bool)
+    used[F.reshape(-1)] = True
+    degenerate = np.linalg.norm(_face_cross(V, F), axis=1) <= 1e-12 * h * h
+    s = used.astype(np.float64)
+    s[F[degenerate].reshape(-1)] = 0.0
+    s = _limit_moves(V, F[~degenerate], d, s)
+    W = V + s[:, None] * d
+    moved = np.linalg.norm(W - V, axis=1) / (h if h > 0 else 1.0)
+    params = {"amount": float(amount), "seed": int(seed),
+              "moved_mean": float(moved.mean()), "moved_max": float(moved.max()),
+              "limited": int(np.sum(used & (s < 1.0))) if amount > 0 else 0,
+              "frozen": int(np.sum(used & (s == 0.0))) if amount > 0 else 0,
+              "degenerate": int(degenerate.sum())}
+    return Resampled(W, F.copy(), "jitter", params, np.arange(len(V)))
 
 
 def subdivide(mesh, iterations=1, method="midpoint"):

@@ -3,6 +3,7 @@
 import numpy as np
 import open3d as o3d
 import pytest
+from hypothesis import given, settings, strategies as st
 from conftest import icosphere
 
 import o3dheat
@@ -121,3 +122,122 @@ def test_remesh_anisotropic_jitter_subdivide():
     with pytest.raises(o3dheat.MeshError, match="resampling 'jitter'"):
         resample((V, F), "jitter", bogus=1)
     assert isinstance(s.mesh, o3d.t.geometry.TriangleMesh)
+
+
+# ------------------------------------------------------------------------ jitter never folds a face
+def _jitter_report(V0, F, r):
+    """Independent check of a jittered mesh: (flipped faces, least area ratio, least projected-area
+    ratio, largest and mean move in mean edge lengths), over the faces of positive original area."""
+    n0 = np.cross(V0[F[:, 1]] - V0[F[:, 0]], V0[F[:, 2]] - V0[F[:, 0]])
+    n1 = np.cross(r.V[F[:, 1]] - r.V[F[:, 0]], r.V[F[:, 2]] - r.V[F[:, 0]])
+    a0, a1 = np.linalg.norm(n0, axis=1), np.linalg.norm(n1, axis=1)
+    h = np.mean(np.linalg.norm(V0[F[:, 0]] - V0[F[:, 1]], axis=1))
+    ok = a0 > 1e-12 * h * h
+    dot = np.einsum("ij,ij->i", n1, n0)[ok]
+    moved = np.linalg.norm(r.V - V0, axis=1) / h
+    flips = int(np.sum(dot <= 0))
+    return flips, (a1[ok] / a0[ok]).min(), (dot / a0[ok] ** 2).min(), moved.max(), moved.mean()
+
+
+@pytest.fixture(scope="module")
+def jitter_meshes():
+    from o3dheat.demo import sample_mesh
+
+    return {"bunny": decimate(sample_mesh("bunny"), target_faces=20000).arrays,
+            "airplane": o3dheat.as_arrays(sample_mesh("airplane")),
+            "torus": o3dheat.as_arrays(sample_mesh("torus"))}
+
+
+@pytest.mark.parametrize("name", ["bunny", "airplane", "torus"])
+def test_jitter_never_folds_the_sample_meshes(jitter_meshes, name):
+    import json
+
+    from o3dheat.sampling import jitter
+
+    V, F = jitter_meshes[name]
+    for amount in (0.1, 0.3, 1.0, 3.0):
+        for seed in (0, 1):
+            r = jitter((V, F), amount, seed)
+            flips, area, projected, moved_max, moved_mean = _jitter_report(V, F, r)
+            p = r.params
+            assert flips == 0, (name, amount, seed)
+            assert area >= 0.1 * (1 - 1e-9) and projected >= 0.1 * (1 - 1e-9), (name, amount, seed)
+            assert p["moved_max"] == pytest.approx(moved_max, rel=1e-12)
+            assert p["moved_mean"] == pytest.approx(moved_mean, rel=1e-12)
+            assert p["moved_max"] > 0.05 * amount  # the limiter shrinks, it does not stop everything
+            assert p["amount"] == amount and p["seed"] == seed and p["degenerate"] == 0
+            assert 0 <= p["frozen"] <= p["limited"] <= len(V)
+            assert json.loads(json.dumps(p)) == p and all(type(v) in (int, float) for v in p.values())
+            assert np.array_equal(r.F, F) and np.array_equal(r.vertex_map, np.arange(len(V)))
+    assert np.array_equal(jitter((V, F), 3.0, 1).V, r.V)  # deterministic, bit for bit
+
+
+def test_jitter_limiter_is_exercised(jitter_meshes, monkeypatch):
+    import o3dheat.sampling as sampling
+
+    V, F = jitter_meshes["torus"]
+    free = sampling.jitter((V, F), 0.1, 0)  # a regular mesh and a small amount: nothing to limit
+    assert free.params["limited"] == 0  # mean length of a 2D Gaussian move: amount * sqrt(pi / 2)
+    assert free.params["moved_mean"] == pytest.approx(0.1 * np.sqrt(np.pi / 2), rel=0.03)
+    big = sampling.jitter((V, F), 3.0, 0)  # unlimited, the mean move would be 3.76 edge lengths
+    assert big.params["limited"] > 0.9 * len(V) and big.params["moved_mean"] < 1.0
+    mid = sampling.jitter((V, F), 0.3, 0)
+    assert 0 < mid.params["limited"] < len(V)
+    # without the safeguard the same proposals fold faces: the checks above would catch it
+    monkeypatch.setattr(sampling, "_limit_moves", lambda V, F, d, s: s)
+    raw = sampling.jitter((V, F), 0.3, 0)
+    assert _jitter_report(V, F, raw)[0] > 100
+    same = np.all(mid.V == raw.V, axis=1)  # the vertices not limited move exactly as proposed
+    assert same.sum() == len(V) - mid.params["limited"]
+
+
+def test_jitter_degenerate_and_unreferenced_input():
+    from conftest import grid
+
+    from o3dheat.sampling import jitter
+
+    V, F = grid(1.0, 1.0, 8, 8)
+    V = np.concatenate([V, [[5.0, 5.0, 5.0]]])  # an unreferenced vertex
+    F = np.concatenate([F, [[0, 1, 2]]])  # a zero-area face (three grid points on a line)
+    with np.errstate(all="raise"):
+        r = jitter((V, F), 2.0, 3)
+    assert r.params["degenerate"] == 1 and r.params["frozen"] >= 3
+    assert np.array_equal(r.V[[0, 1, 2, len(V) - 1]], V[[0, 1, 2, len(V) - 1]])
+    flips, area, _, moved_max, _ = _jitter_report(V, F, r)
+    assert flips == 0 and area >= 0.1 * (1 - 1e-9) and moved_max > 0
+    z = jitter((V, F), 0.0, 0)
+    assert np.array_equal(z.V, V) and z.params["moved_max"] == 0.0 and z.params["limited"] == 0
+    with pytest.raises(o3dheat.MeshError):
+        jitter((V, F), -0.1)
+    with pytest.raises(o3dheat.MeshError, match="overflow"):
+        jitter((V, F), 1e308)
+
+
+def _random_disk(seed, n, lift):
+    from scipy.spatial import Delaunay
+
+    rng = np.random.default_rng(seed)
+    r, t = np.sqrt(rng.uniform(0, 1, n)), rng.uniform(0, 2 * np.pi, n)
+    P = np.stack([r * np.cos(t), r * np.sin(t)], 1)
+    F = Delaunay(P).simplices.astype(np.int64)
+    if lift == "flat":
+        z = np.zeros(n)
+    elif lift == "smooth":
+        z = rng.uniform(-1, 1) * np.sin(3 * P[:, 0] + rng.uniform(0, 6)) * np.cos(2 * P[:, 1])
+    else:
+        z = 0.3 * rng.standard_normal(n)  # rough: vertex normals far from the face normals
+    return np.column_stack([P, z]), F
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**16), n=st.integers(4, 60), lift=st.sampled_from(["flat", "smooth", "rough"]),
+       amount=st.floats(0, 10), jseed=st.integers(0, 2**16))
+def test_jitter_random_disks_never_fold(seed, n, lift, amount, jseed):
+    from o3dheat.sampling import jitter
+
+    V, F = _random_disk(seed, n, lift)
+    r = jitter((V, F), amount, jseed)
+    flips, area, projected, moved_max, _ = _jitter_report(V, F, r)
+    assert flips == 0 and area >= 0.1 * (1 - 1e-9) and projected >= 0.1 * (1 - 1e-9)
+    assert r.params["moved_max"] == pytest.approx(moved_max, rel=1e-12, abs=1e-15)
+    assert np.array_equal(jitter((V, F), amount, jseed).V, r.V)
