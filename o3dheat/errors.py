@@ -4,7 +4,7 @@ Every error raised on purpose by o3dheat is one of these two, with a message tha
 wrong and what to do about it.
 """
 
-__all__ = ["MeshError", "SolverError"]
+__all__ = ["MeshError", "SolverError", "ConvergenceError"]
 
 
 class MeshError(ValueError):
@@ -28,5 +28,17 @@ class SolverError(RuntimeError):
     --------
     >>> import o3dheat
     >>> issubclass(o3dheat.SolverError, RuntimeError)
+    True
+    """
+
+
+class ConvergenceError(SolverError):
+    """An iterative eigensolver stopped without converging (or could not run on so small a
+    problem); :func:`o3dheat.eigensolve` then falls back to the next method.
+
+    Examples
+    --------
+    >>> import o3dheat
+    >>> issubclass(o3dheat.errors.ConvergenceError, o3dheat.SolverError)
     True
     """

@@ -31,7 +31,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from . import parallel
-from .errors import SolverError
+from .errors import ConvergenceError
 
 __all__ = ["block_lanczos", "rayleigh_ritz"]
 
@@ -72,7 +72,7 @@ def _b_orthonormalize_block(W, rows, rng, BW=None):
         W = np.concatenate([W @ (U[:, keep] / np.sqrt(w[keep])),
                             rng.standard_normal((W.shape[0], int((~keep).sum())))], 1)
         BW = None
-    raise SolverError("could not build a B-orthonormal block (breakdown of the Lanczos basis)")
+    raise ConvergenceError("could not build a B-orthonormal block (breakdown of the Lanczos basis)")
 
 
 def _rotate(V, m, Z, p, rows=16384):
@@ -189,7 +189,7 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
 
     Raises
     ------
-    SolverError
+    ConvergenceError
         No convergence within ``max_restarts`` restarts, or a breakdown.
 
     Examples
@@ -211,7 +211,7 @@ def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, s
     m_max = int(min(n - b, max_basis or max(2 * k, k + 4 * b)))
     m_max = max(m_max, min(n - b, k + max(2 * b, 8, k // 4)))
     if m_max < k:
-        raise SolverError(f"the problem is too small for Lanczos (n={n}, k={k}): use the dense solver")
+        raise ConvergenceError(f"the problem is too small for Lanczos (n={n}, k={k}): use the dense solver")
     rng = np.random.default_rng(seed)
     VT = np.empty((m_max + b, n))  # the basis, transposed: its first k rows can be kept in place
     V = VT.T
@@ -275,7 +275,7 @@ def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, s
             break
         if done_filling:
             if restarts >= max_restarts:
-                raise SolverError(f"block Lanczos did not converge after {restarts} restarts")
+                raise ConvergenceError(f"block Lanczos did not converge after {restarts} restarts")
             restarts += 1
             p = min(m - b, max(k + (m_max - k) // 2, k + b), m_max - b)
             # lock the leading converged Ritz pairs: they leave T and the rotations (their

@@ -28,7 +28,7 @@ import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from . import fem, parallel
-from .errors import MeshError, SolverError
+from .errors import ConvergenceError, MeshError, SolverError
 from .lanczos import block_lanczos, rayleigh_ritz
 from .linalg import factorize
 from .mesh import prepare
@@ -37,7 +37,7 @@ __all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "default_cache_dir"
 
 log = logging.getLogger("o3dheat")
 
-MASS_KINDS = ("consistent", "lumped", "identity")
+MASS_KINDS = ("consistent", "lumped", "voronoi", "identity")
 DENSE_MAX_N = 1200
 DENSE_LIMIT_N = 12_000  # above this a dense solve needs several GiB: never chosen automatically
 # Measured (scripts/bench_spectrum.py, 2 cores): the block Lanczos wins from about 10k vertices,
@@ -63,7 +63,7 @@ class Spectrum:
     mass : (n, n) scipy.sparse.csc_matrix
         ``B`` as chosen by ``mass_kind`` (the identity for "identity").
     mass_kind : str
-        "consistent", "lumped" or "identity".
+        "consistent", "lumped", "voronoi" or "identity" (:func:`eigensolve_operators`: "given").
     areas : (n,) float64 ndarray
         Mixed Voronoi areas of the vertices (for the Voronoi kernel of eq. (7)).
     backend : str
@@ -204,7 +204,7 @@ def _solve_arpack(L, B, k, sigma, backend, seed):
         lam, X = spla.eigsh(L, k=k, M=B, sigma=sigma, which="LM", OPinv=op, ncv=ncv, tol=0.0,
                             v0=np.random.default_rng(seed).standard_normal(n), maxiter=max(1000, 20 * k))
     except spla.ArpackNoConvergence as e:
-        raise SolverError(f"the eigensolver did not converge for k={k}: {e}") from e
+        raise ConvergenceError(f"the eigensolver did not converge for k={k}: {e}") from e
     return lam, X, fac.backend, t1 - t0, time.perf_counter() - t1
 
 
@@ -254,9 +254,10 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     k : int
         Number of eigenpairs, ``1 <= k <= n`` (``n`` referenced vertices); ``k = n`` is the full
         spectrum (dense solver).
-    mass : {"consistent", "lumped", "identity"}
-        ``B``: the paper's consistent FEM mass, its lumped diagonal, or ``I`` (the paper's
-        "B := I" linear FEM kernel).
+    mass : {"consistent", "lumped", "voronoi", "identity"}
+        ``B``: the paper's consistent FEM mass, its lumped diagonal (row sums), the diagonal of
+        mixed Voronoi areas (eq. (7)), or ``I`` (the paper's "B := I" linear FEM kernel). Each is
+        the mass of one heat-kernel variant (:data:`o3dheat.kernel.VARIANTS`).
     sigma : float, optional
         Shift, must be negative (``L - σ B`` is then positive definite). Default: a hundredth of
         the expected first gap (Weyl's law), below 0.
@@ -338,9 +339,26 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
 
 def _solve(L, B, k, method, sigma, backend, seed, tol, block):
     """Smallest k eigenpairs of L x = λ B x: (λ, X B-orthonormal with fixed signs, backend, σ,
-    residuals, timings)."""
+    residuals, timings).
+
+    The chosen method falls back when it fails to converge (the block Lanczos on tiny meshes,
+    whose Krylov space is nearly exhausted by a 2k-vector basis; ARPACK on hard clusters):
+    "lanczos" -> "arpack" -> "dense", the last only where a dense solve fits in memory."""
     r = L.shape[0]
     method = _choose_method(method, r, k)
+    chain = {"lanczos": ["lanczos", "arpack", "dense"], "arpack": ["arpack", "dense"]}.get(method, [method])
+    chain = [m for m in chain if m != "dense" or r <= DENSE_LIMIT_N]
+    for i, m in enumerate(chain):
+        try:
+            return _solve_by(L, B, k, m, sigma, backend, seed, tol, block)
+        except ConvergenceError as e:
+            if i + 1 == len(chain):
+                raise
+            log.warning("eigensolver %r failed (%s): falling back to %r", m, e, chain[i + 1])
+
+
+def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
+    r = L.shape[0]
     use_dense = method == "dense"
     s = float("nan") if use_dense else (_shift(B) if sigma is None else float(sigma))
     perm, t_perm = None, 0.0

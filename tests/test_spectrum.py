@@ -5,6 +5,7 @@ import logging
 import numpy as np
 import open3d as o3d
 import pytest
+from hypothesis import given, settings, strategies as st
 
 import o3dheat
 from o3dheat.linalg import available_backends
@@ -62,7 +63,7 @@ def test_torus_first_eigenvalue_zero_and_orthonormal(torus_mesh):
     np.testing.assert_allclose(s.stiffness @ X, (B @ X) * s.eigenvalues, atol=1e-8 * s.eigenvalues.max())
 
 
-@pytest.mark.parametrize("mass", ["consistent", "lumped", "identity"])
+@pytest.mark.parametrize("mass", ["consistent", "lumped", "voronoi", "identity"])
 def test_mass_kinds(irregular_mesh, mass):
     s = o3dheat.eigensolve(irregular_mesh, k=10, mass=mass, method="arpack")
     d = o3dheat.eigensolve(irregular_mesh, k=10, mass=mass, method="dense")
@@ -182,13 +183,14 @@ def test_bad_sigma_and_mass():
     with pytest.raises(o3dheat.MeshError, match="sigma"):
         o3dheat.eigensolve(icosphere(1), k=3, sigma=0.5)
     with pytest.raises(o3dheat.MeshError, match="unknown mass"):
-        o3dheat.eigensolve(icosphere(1), k=3, mass="voronoi")
+        o3dheat.eigensolve(icosphere(1), k=3, mass="cotan")
     with pytest.raises(o3dheat.SolverError, match="unknown backend"):
         o3dheat.eigensolve(icosphere(3), k=3, backend="mkl", method="arpack")
 
 
 def test_dense_refused_when_too_large(monkeypatch):
     import o3dheat.spectrum as S
+    from o3dheat.errors import ConvergenceError
 
     V, F = icosphere(2)  # 162 vertices
     ref = o3dheat.eigensolve((V, F), k=100).eigenvalues  # k > n/2: dense
@@ -244,3 +246,40 @@ def test_auto_method_follows_the_measured_crossovers():
     assert _choose_method("auto", 20000, 10) == "lanczos"
     assert _choose_method("auto", 5000, 4999) == "dense"
     assert _choose_method("arpack", 50000, 10) == "arpack"
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(8, 40), frac=st.floats(0.2, 0.95),
+       method=st.sampled_from(["lanczos", "arpack", "auto"]))
+def test_small_meshes_every_method_matches_dense(seed, n, frac, method):
+    """Random Delaunay disks of 8-40 vertices: every method succeeds (falling back where it must)
+    and gives the dense solver's eigenvalues and B-orthonormal eigenvectors."""
+    import scipy.spatial
+
+    rng = np.random.default_rng(seed)
+    r, a = np.sqrt(rng.uniform(0, 1, n)), rng.uniform(0, 2 * np.pi, n)
+    P = np.c_[r * np.cos(a), r * np.sin(a)]
+    V = np.c_[P, 0.3 * rng.standard_normal(n)]  # a random height: not flat
+    F = scipy.spatial.Delaunay(P).simplices
+    k = max(1, min(n - 1, int(frac * n)))
+    dense = o3dheat.eigensolve((V, F), k=k, method="dense")
+    s = o3dheat.eigensolve((V, F), k=k, method=method)
+    scale = max(dense.eigenvalues[-1], 1.0)
+    np.testing.assert_allclose(s.eigenvalues, dense.eigenvalues, atol=1e-8 * scale)
+    np.testing.assert_allclose(s.eigenvectors.T @ (s.mass @ s.eigenvectors), np.eye(k), atol=1e-8)
+    assert s.residuals.max() < 1e-8
+
+
+def test_lanczos_failure_falls_back(monkeypatch, irregular_mesh, caplog):
+    import o3dheat.spectrum as S
+    from o3dheat.errors import ConvergenceError
+
+    def broken(*a, **kw):
+        raise ConvergenceError("block Lanczos did not converge after 100 restarts")
+
+    monkeypatch.setattr(S, "_solve_lanczos", broken)
+    ref = o3dheat.eigensolve(irregular_mesh, k=12, method="arpack")
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        s = o3dheat.eigensolve(irregular_mesh, k=12, method="lanczos")
+    assert "falling back to 'arpack'" in caplog.text
+    np.testing.assert_allclose(s.eigenvalues, ref.eigenvalues, rtol=1e-10, atol=1e-12)
