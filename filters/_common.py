@@ -10,11 +10,18 @@ no critical points), when that package is installed (``pip install robust-laplac
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 
 from o3dheat.errors import MeshError
+from o3dheat.kernel import GRIDS, HKS_FORMS, VARIANTS
 
 OPERATORS = ("reconstruct", "robust")
+#: parameter types shared by the filters, from the kernel module's single definitions
+Variant = Literal[tuple(VARIANTS)]
+Grid = Literal[GRIDS]
+HksForm = Literal[HKS_FORMS]
 
 
 class Site:
@@ -161,14 +168,21 @@ def _robust_spectrum(P, k):
     return _ROBUST[key]
 
 
-def kernel_of(site, k, mass="consistent", variant="weighted", normalize=None):
+def kernel_of(site, k, variant="weighted", normalize=None):
+    """The heat kernel ``variant`` (:data:`o3dheat.kernel.VARIANTS`) on the site's own spectrum
+    of that variant's mass; point clouds with ``operators="robust"`` have robust-laplacian's
+    mass only ("weighted")."""
     from o3dheat import HeatKernel
 
+    if not site.is_mesh and site.operators == "robust" and variant != "weighted":
+        raise MeshError(f"operators='robust' comes with robust-laplacian's own mass: use variant='weighted', "
+                        f"or operators='reconstruct' for the {variant!r} kernel")
+    mass = VARIANTS[variant][0] if variant in VARIANTS else variant  # HeatKernel names a bad variant
     return HeatKernel(site.spectrum(k=k, mass=mass), variant=variant, normalize=normalize)
 
 
-def times_of(kernel, times, scales):
-    """Explicit times, or the paper's ``scales`` count."""
+def times_of(kernel, times, scales, grid="paper"):
+    """Explicit times, or ``scales`` times of the kernel's ``grid``."""
     if times:
         return np.asarray(times, dtype=np.float64)
-    return kernel.scales(scales)
+    return kernel.scales(scales, grid=grid)

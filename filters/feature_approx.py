@@ -7,7 +7,7 @@ from typing import Literal
 
 from o3dheat.errors import MeshError
 
-from ._common import Site, kernel_of
+from ._common import Site, Variant, kernel_of
 
 
 @dataclass(frozen=True)
@@ -29,8 +29,8 @@ class FeatureApprox:
         Persistence threshold of the δ-simplification (units of f).
     keep_fraction : float or None
         Alternative to delta. With neither, every critical point is a feature.
-    variant : {"weighted", "linear", "voronoi"}
-        The kernel (weighted = the paper's).
+    variant : {"weighted", "linear", "voronoi", "lumped"}
+        The kernel, on the spectrum of its own mass (weighted = the paper's).
     k : int
         Eigenpairs.
     operators : {"reconstruct", "robust"}
@@ -52,7 +52,7 @@ class FeatureApprox:
     t: float | None = None
     delta: float | None = None
     keep_fraction: float | None = None
-    variant: Literal["weighted", "linear", "voronoi"] = "weighted"
+    variant: Variant = "weighted"
     k: int = 100
     operators: Literal["reconstruct", "robust"] = "reconstruct"
 

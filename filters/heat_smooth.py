@@ -7,7 +7,7 @@ from typing import Literal
 
 from o3dheat.errors import MeshError
 
-from ._common import Site, kernel_of, times_of
+from ._common import Grid, Site, Variant, kernel_of, times_of
 
 
 @dataclass(frozen=True)
@@ -23,15 +23,17 @@ class HeatSmooth:
     times : list of float or None
         Times (paper convention ``exp(−λ t / 2)``). Default: the paper's ``scales``.
     scales : int
-        Number of the paper's scales ``t_i = (i / scales) / λ_k`` when ``times`` is not given.
-    variant : {"weighted", "linear", "voronoi"}
-        The kernel (weighted = the paper's, with the mass matrix).
+        Number of scales of ``grid`` when ``times`` is not given.
+    grid : {"paper", "log"}
+        "paper": ``t_i = (i / scales) / λ_k``; "log": from ``1/λ_k`` to ``2 ln(100)/λ_2`` (the
+        whole range, to nearly constant). See :meth:`o3dheat.HeatKernel.scales`.
+    variant : {"weighted", "linear", "voronoi", "lumped"}
+        The kernel, each on the spectrum of its own mass (:data:`o3dheat.kernel.VARIANTS`;
+        "weighted" is the paper's).
     normalize : {None, "lambda2"}
         "lambda2": the scale-invariant kernel.
     k : int
         Eigenpairs.
-    mass : {"consistent", "lumped", "identity"}
-        Mass matrix of the eigenproblem.
     output : str or None
         Default "<attribute>_smooth": (n,) for one time, (n, T) for T times.
     operators : {"reconstruct", "robust"}
@@ -49,10 +51,10 @@ class HeatSmooth:
     column: int | None = None
     times: tuple[float, ...] | None = None
     scales: int = 10
-    variant: Literal["weighted", "linear", "voronoi"] = "weighted"
+    grid: Grid = "paper"
+    variant: Variant = "weighted"
     normalize: Literal[None, "lambda2"] = None
     k: int = 100
-    mass: Literal["consistent", "lumped", "identity"] = "consistent"
     output: str | None = None
     operators: Literal["reconstruct", "robust"] = "reconstruct"
 
@@ -67,8 +69,8 @@ class HeatSmooth:
     def __call__(self, geometry):
         site = Site(geometry, self.operators)
         f = site.attribute(self.attribute, self.column)
-        K = kernel_of(site, self.k, self.mass, self.variant, self.normalize)
-        t = times_of(K, self.times, self.scales)
+        K = kernel_of(site, self.k, self.variant, self.normalize)
+        t = times_of(K, self.times, self.scales, self.grid)
         if f.ndim == 2 and len(t) > 1:
             raise MeshError(f"attribute {self.attribute!r} has {f.shape[1]} columns: smooth one column "
                             "(column=) at several times, or all columns at one time")

@@ -7,7 +7,7 @@ from typing import Literal
 
 from o3dheat.errors import MeshError
 
-from ._common import Site, kernel_of, times_of
+from ._common import Grid, HksForm, Site, Variant, kernel_of, times_of
 
 
 @dataclass(frozen=True)
@@ -17,18 +17,20 @@ class Hks:
     Parameters
     ----------
     scales : int
-        Number of the paper's scales when ``times`` is not given.
+        Number of scales of ``grid`` when ``times`` is not given.
+    grid : {"paper", "log"}
+        The scale grid (:meth:`o3dheat.HeatKernel.scales`).
     times : list of float or None
         Times (paper convention ``exp(−λ t / 2)``).
     form : {"density", "paper"}
-        "density": ``Σ e^{−λt/2} x(i)²`` (the usual HKS, stable across samplings); "paper": the
-        kernel diagonal ``Σ e^{−λt/2} x(i) (B x)(i)``.
+        "density" (the default everywhere): ``Σ e^{−λt/2} x(i)²`` (the usual HKS, stable across
+        samplings); "paper": the kernel diagonal ``Σ e^{−λt/2} x(i) (W x)(i)``.
+    variant : {"weighted", "linear", "voronoi", "lumped"}
+        The kernel, each on the spectrum of its own mass (:data:`o3dheat.kernel.VARIANTS`).
     normalize : {None, "lambda2"}
         "lambda2": scale-invariant eigenvalues.
     k : int
         Eigenpairs.
-    mass : {"consistent", "lumped", "identity"}
-        Mass matrix of the eigenproblem.
     output : str
         Attribute name.
     operators : {"reconstruct", "robust"}
@@ -44,10 +46,11 @@ class Hks:
 
     scales: int = 10
     times: tuple[float, ...] | None = None
-    form: Literal["density", "paper"] = "density"
+    grid: Grid = "paper"
+    form: HksForm = "density"
+    variant: Variant = "weighted"
     normalize: Literal[None, "lambda2"] = None
     k: int = 100
-    mass: Literal["consistent", "lumped", "identity"] = "consistent"
     output: str = "hks"
     operators: Literal["reconstruct", "robust"] = "reconstruct"
 
@@ -59,8 +62,8 @@ class Hks:
 
     def __call__(self, geometry):
         site = Site(geometry, self.operators)
-        K = kernel_of(site, self.k, self.mass, normalize=self.normalize)
-        t = times_of(K, self.times, self.scales)
+        K = kernel_of(site, self.k, self.variant, self.normalize)
+        t = times_of(K, self.times, self.scales, self.grid)
         h = K.hks(t, form=self.form)
         site.set(self.output, site.from_surface(h.reshape(len(h), -1)))
         return site.result()

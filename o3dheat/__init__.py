@@ -8,7 +8,7 @@ from .approximation import ScaleSpace, feature_driven, scale_space
 from .diffusion import diffuse
 from .errors import MeshError, SolverError
 from .fem import mass_matrix, stiffness_matrix
-from .kernel import HeatKernel
+from .kernel import VARIANTS, HeatKernel, heat_kernel
 from .mesh import MeshReport, as_arrays, check_mesh
 from .spectrum import Spectrum, eigensolve
 from .study import robustness_study
@@ -23,7 +23,7 @@ __all__ = [
     "as_arrays", "check_mesh", "MeshReport",
     "stiffness_matrix", "mass_matrix",
     "eigensolve", "Spectrum",
-    "HeatKernel",
+    "HeatKernel", "heat_kernel", "VARIANTS",
     "diffuse",
     "critical_points", "CriticalPoints", "persistence", "PersistenceDiagram",
     "simplify_critical_points", "level_sets",

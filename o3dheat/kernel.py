@@ -6,11 +6,22 @@ Time follows the paper: ``K_t = X D_t Xᵀ W`` with ``D_t = diag(exp(-φ(λ_i) t
 eigenvalue when ``normalize="lambda2"`` (§2.2: the kernel is then scale invariant). Peers such as
 LaPy and Sun et al. write ``exp(-λ t)``: ``t_paper = 2 t_peer``.
 
-The right-hand weight ``W`` is the kernel variant (§2.1, §2.3): "weighted" ``W = B`` (the paper's
-weighted linear FEM kernel, with ``B`` the spectrum's mass), "linear" ``W = I``, "voronoi"
-``W = diag(a)`` with the mixed Voronoi areas (eq. (7)). "linear" and "voronoi" are meant for a
-spectrum computed with ``mass="identity"`` (the paper's "B := I"); with another spectrum they
-evaluate the same formula.
+Each kernel variant is the heat kernel of its own eigenproblem ``L x = λ W x`` (its spectrum's
+mass ``W``, eigenvectors ``W``-orthonormal): ``K_t = X D_t Xᵀ W``. So every variant keeps
+constants (``K_t 1 = 1``), conserves the total ``1ᵀ W f``, is a semigroup
+(``K_s K_t = K_{s+t}``) and tends to the ``W``-weighted mean as ``t → ∞``. The variants
+(:data:`VARIANTS`, defined here once for the whole package):
+
+* "weighted" — the paper's weighted linear FEM kernel (§2.1): ``W = B``, the consistent FEM mass;
+* "linear" — the paper's linear FEM kernel, "B := I" (§2.1): eigenpairs of ``L x = λ x``,
+  ``K_t = X D_t Xᵀ``;
+* "voronoi" — eq. (7) (§2.3) as Sun et al. compute it: eigenpairs of ``L x = λ A x`` with
+  ``A = diag(a)`` the mixed Voronoi areas of Meyer et al., and ``K_t = X D_t Xᵀ A``;
+* "lumped" — common practice: ``W = diag(row sums of B)``, the barycentric lumped mass.
+
+A kernel is built on a spectrum computed with its mass (:func:`heat_kernel` does both steps);
+pairing a variant with another spectrum is refused, since ``X D_t Xᵀ W`` with ``W`` other than the
+spectrum's mass is not a heat kernel (it does not even keep constants).
 
 Everything works on the truncated spectrum (``k`` eigenpairs): ``Φ_t f = X_k D_t X_kᵀ W f`` costs
 ``O(k n)`` per scale and field.
@@ -25,9 +36,67 @@ import numpy as np
 from .errors import MeshError, SolverError
 from .spectrum import Spectrum
 
-__all__ = ["HeatKernel"]
+__all__ = ["HeatKernel", "heat_kernel", "VARIANTS", "GRIDS", "HKS_FORMS", "HKS_DEFAULT"]
 
-VARIANTS = ("weighted", "linear", "voronoi")
+#: kernel variant -> (mass of its eigenproblem, what it is in one line). The one definition used by
+#: the filters, the command, the studies and the figures.
+VARIANTS = {
+    "weighted": ("consistent", "the paper's kernel X D_t Xᵀ B, B the consistent FEM mass (§2.1)"),
+    "linear": ("identity", "the paper's B := I kernel X D_t Xᵀ, eigenpairs of L x = λ x (§2.1)"),
+    "voronoi": ("voronoi", "eq. (7): X D_t Xᵀ A, eigenpairs of L x = λ A x, A = Voronoi areas (§2.3)"),
+    "lumped": ("lumped", "X D_t Xᵀ D, eigenpairs of L x = λ D x, D = lumped (row-sum) mass"),
+}
+#: scale grids of :meth:`HeatKernel.scales`
+GRIDS = ("paper", "log")
+#: heat kernel signature forms of :meth:`HeatKernel.hks`; the default everywhere is "density"
+HKS_FORMS = ("density", "paper")
+HKS_DEFAULT = "density"
+
+
+def variant_of_mass(mass_kind):
+    """The variant whose eigenproblem uses ``mass_kind`` ("given" for operators built elsewhere)."""
+    for name, (mass, _) in VARIANTS.items():
+        if mass == mass_kind:
+            return name
+    return "given"
+
+
+def heat_kernel(mesh, k=100, variant="weighted", normalize=None, transfer=None, **eigensolve_options):
+    """The heat kernel ``variant`` of a mesh: its eigenproblem solved with the right mass, then
+    :class:`HeatKernel`.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+    k : int
+        Eigenpairs.
+    variant : {"weighted", "linear", "voronoi", "lumped"}
+        See :data:`VARIANTS`.
+    normalize, transfer
+        As for :class:`HeatKernel`.
+    **eigensolve_options
+        Passed to :func:`o3dheat.eigensolve` (``cache``, ``method``, ``tol``...; not ``mass``).
+
+    Returns
+    -------
+    HeatKernel
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16)
+    >>> K = o3dheat.heat_kernel(mesh, k=20, variant="linear")     # eigenpairs of L x = λ x
+    >>> K.spectrum.mass_kind, bool(np.allclose(K.smooth(np.ones(K.n), 3.0), 1.0))
+    ('identity', True)
+    """
+    from .spectrum import eigensolve
+
+    if variant not in VARIANTS:
+        raise MeshError(f"unknown kernel variant {variant!r}: use one of {', '.join(VARIANTS)}")
+    if "mass" in eigensolve_options:
+        raise MeshError("heat_kernel chooses the mass from the variant: do not pass mass=")
+    spec = eigensolve(mesh, k=k, mass=VARIANTS[variant][0], **eigensolve_options)
+    return HeatKernel(spec, variant=variant, normalize=normalize, transfer=transfer)
 
 
 class HeatKernel:
@@ -37,8 +106,12 @@ class HeatKernel:
     ----------
     spectrum : Spectrum
         From :func:`o3dheat.eigensolve`.
-    variant : {"weighted", "linear", "voronoi"}
-        The right-hand weight ``W``: ``B`` (the paper), ``I``, or the Voronoi areas (eq. (7)).
+    variant : {None, "weighted", "linear", "voronoi", "lumped"}
+        The kernel (:data:`VARIANTS`). It is fixed by the spectrum's mass: None takes the variant
+        of ``spectrum.mass_kind``; a variant whose mass differs is refused (compute the spectrum
+        with ``eigensolve(mesh, k, mass=VARIANTS[variant][0])``, or use :func:`heat_kernel`). A
+        spectrum of :func:`o3dheat.spectrum.eigensolve_operators` (mass "given") takes None or
+        "weighted" (its own mass as the weight).
     normalize : {None, "lambda2"}
         "lambda2" divides the eigenvalues by the first non-zero one (scale-invariant kernel, §2.2).
     transfer : callable or sequence of float, optional
@@ -56,11 +129,20 @@ class HeatKernel:
     ((762, 10), True)
     """
 
-    def __init__(self, spectrum, variant="weighted", normalize=None, transfer=None):
+    def __init__(self, spectrum, variant=None, normalize=None, transfer=None):
         if not isinstance(spectrum, Spectrum):
             raise MeshError(f"HeatKernel needs a Spectrum (from o3dheat.eigensolve), got {type(spectrum).__name__}")
-        if variant not in VARIANTS:
-            raise MeshError(f"unknown kernel variant {variant!r}: use one of {VARIANTS}")
+        own = variant_of_mass(spectrum.mass_kind)
+        if variant is None or (own == "given" and variant == "weighted"):
+            variant = own
+        elif variant not in VARIANTS:
+            raise MeshError(f"unknown kernel variant {variant!r}: use one of {', '.join(VARIANTS)}")
+        elif variant != own:
+            need = VARIANTS[variant][0]
+            raise MeshError(f"the {variant!r} kernel is the heat kernel of the {need!r} mass, but this spectrum "
+                            f"was computed with mass={spectrum.mass_kind!r} (X D_t Xᵀ W with another W does not "
+                            f"keep constants): use o3dheat.eigensolve(mesh, k, mass={need!r}) or "
+                            f"o3dheat.heat_kernel(mesh, k, variant={variant!r})")
         if normalize not in (None, "lambda2"):
             raise MeshError(f"unknown normalize {normalize!r}: use None or 'lambda2'")
         self.spectrum = spectrum
@@ -101,13 +183,8 @@ class HeatKernel:
         return self.spectrum.n
 
     def _weigh(self, f):
-        """W f for the variant."""
-        if self.variant == "weighted":
-            return self.spectrum.mass @ f
-        if self.variant == "linear":
-            return f
-        a = self.spectrum.areas
-        return a[:, None] * f if f.ndim == 2 else a * f
+        """W f: the spectrum's mass times f."""
+        return self.spectrum.mass @ f
 
     @cached_property
     def _WX(self):
@@ -191,17 +268,20 @@ class HeatKernel:
 
     __call__ = smooth
 
-    def hks(self, t, form="paper"):
+    def hks(self, t, form=HKS_DEFAULT):
         """Heat kernel signature at time(s) t.
 
         Parameters
         ----------
         t : float or (T,) array_like
             Times (>= 0), paper convention.
-        form : {"paper", "density"}
+        form : {"density", "paper"}
+            "density" (the default everywhere in o3dheat): ``Σ_b e^{-λ_b t/2} x_b(i)²``, the usual
+            HKS of Sun et al. (units 1/area for the area-weighted variants; stable across samplings).
             "paper": the diagonal of this kernel, ``K_t(i, i) = Σ_b e^{-λ_b t/2} x_b(i) (W x_b)(i)``
-            (§2.2; for "weighted" ``W = B``: mass-weighted and dimensionless);
-            "density": ``Σ_b e^{-λ_b t/2} x_b(i)²`` (Sun et al.; 1/area, stable across samplings).
+            (§2.2): the density times the vertex's own mass row, dimensionless but proportional to
+            the local vertex area, so not comparable across samplings (equal to "density" for
+            the "linear" kernel, where ``W = I``).
 
         Returns
         -------
@@ -211,36 +291,63 @@ class HeatKernel:
         --------
         >>> import numpy as np, open3d as o3d, o3dheat
         >>> K = o3dheat.HeatKernel(o3dheat.eigensolve(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16), k=30))
-        >>> h = K.hks(K.scales(), form="density")
+        >>> h = K.hks(K.scales())
         >>> h.shape[1], bool(np.all(h > 0))
         (10, True)
         """
-        if form not in ("paper", "density"):
-            raise MeshError(f"unknown HKS form {form!r}: use 'paper' or 'density'")
+        if form not in HKS_FORMS:
+            raise MeshError(f"unknown HKS form {form!r}: use one of {', '.join(HKS_FORMS)}")
         D = self.filter_factors(t)
         X = self.spectrum.eigenvectors
         P = X * (self._WX if form == "paper" else X)
         return P @ D
 
-    def scales(self, count=10):
-        """The paper's scales ``t_i = (i / count) / λ_k``, ``i = 1..count`` (§2.4).
+    def scales(self, count=10, grid="paper"):
+        """Times for a scale sweep, ``count`` of them, increasing.
 
-        ``λ_k`` is the largest (normalised, transferred) eigenvalue of the spectrum.
+        * ``grid="paper"``: the paper's ``t_i = (i / count) / λ_k``, ``i = 1..count`` (§2.4). With
+          many eigenpairs these times all lie where only the highest modes are damped: Φ_t f barely
+          changes across them (it is already the band-limited ``X Xᵀ W f`` at ``t ≈ 0``).
+        * ``grid="log"``: log-spaced from ``1 / λ_k`` (the highest mode kept at ``e^{-1/2}``) to
+          ``2 ln(100) / λ_2`` (the first non-constant mode damped to 1%, Φ_t f nearly constant):
+          the whole multi-scale range, from what k eigenpairs resolve to the global mean.
+
+        ``λ_k`` is the largest and ``λ_2`` the first non-zero rate (normalised, transferred) of
+        this kernel.
 
         Parameters
         ----------
         count : int
+        grid : {"paper", "log"}
 
         Returns
         -------
         (count,) float64 ndarray
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> K = o3dheat.HeatKernel(o3dheat.eigensolve(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16), k=36))
+        >>> K.spectrum.eigenvalues[[1, -1]].round(2).tolist()   # λ_2 and λ_k
+        [2.02, 33.29]
+        >>> K.scales(3).round(4).tolist()                       # (i/3) / λ_k
+        [0.01, 0.02, 0.03]
+        >>> K.scales(3, grid="log").round(4).tolist()           # 1/λ_k .. 2 ln(100)/λ_2
+        [0.03, 0.3703, 4.5656]
         """
-        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
-            raise MeshError(f"count must be a positive integer, got {count!r}")
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 1 <= count <= 100_000:
+            raise MeshError(f"count must be an integer from 1 to 100000, got {count!r}")
+        if grid not in GRIDS:
+            raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(GRIDS)}")
         lk = float(np.max(self.rates))
         if lk <= 0:
             raise MeshError("all eigenvalues are zero: compute more eigenpairs to define the scales")
-        return np.arange(1, count + 1) / count / lk
+        if grid == "paper":
+            return np.arange(1, count + 1) / count / lk
+        lo, hi = 1.0 / lk, 2.0 * np.log(100.0) / self._first_nonzero(self.rates)
+        if hi <= lo:  # few eigenpairs: λ_k close to λ_2
+            hi = 10.0 * lo
+        return np.geomspace(lo, hi, count) if count > 1 else np.array([lo])
 
     def error(self, f, t):
         """Relative approximation error ``ε∞ = ‖f − Φ_t f‖∞ / ‖f‖∞`` (0 when f = 0).
@@ -292,11 +399,10 @@ class HeatKernel:
     def inverse(self, f, t):
         """Inverse feature map ``Φ_t^{-1}`` on the spectral span (§3.2): ``α`` with ``Φ_t α = P f``.
 
-        ``P`` is the projection onto the span of the k eigenvectors (the spectrum's mass inner
-        product). For the weighted kernel, and for the linear kernel on an identity-mass spectrum,
-        ``α = X D_t^{-1} Xᵀ W f`` (the paper's linear-time formula when B := I); otherwise the
-        k x k Gram matrix ``Xᵀ W X`` is solved as well. ``inverse(smooth(f, t), t) = P f``, and
-        both are exact when the spectrum is complete (k = n).
+        ``P`` is the ``W``-orthogonal projection onto the span of the k eigenvectors, and
+        ``α = X D_t^{-1} Xᵀ W f`` (for the linear kernel, ``W = I``: the paper's linear-time
+        formula). ``inverse(smooth(f, t), t) = P f``, and both are exact when the spectrum is
+        complete (k = n).
 
         Parameters
         ----------
@@ -321,29 +427,18 @@ class HeatKernel:
         if expo > np.log(1e15):
             raise SolverError(f"the inverse at t={float(t):g} amplifies by exp({expo:.3g}) > 1e15: use a "
                               "smaller t or fewer eigenpairs")
-        X = self.spectrum.eigenvectors
-        g = X.T @ (self.spectrum.mass @ f)  # coordinates of P f
+        g = self.coefficients(f)  # coordinates of P f
         Dinv = np.exp(0.5 * self.rates * float(t))
-        c = Dinv[:, None] * g if g.ndim == 2 else Dinv * g
-        if not self._orthonormal_weight:
-            c = np.linalg.solve(X.T @ self._WX, c)
-        return X @ c
-
-    @cached_property
-    def _orthonormal_weight(self):
-        s = self.spectrum
-        if self.variant == "weighted":
-            return True
-        return self.variant == "linear" and s.mass_kind == "identity"
+        return self.spectrum.eigenvectors @ (Dinv[:, None] * g if g.ndim == 2 else Dinv * g)
 
     # ------------------------------------------------------------------ truncation
     def truncation_bound(self, f, t):
         """Upper bound of what dropping the eigenpairs above ``λ_k`` costs at time t.
 
-        With ``P`` the B-orthogonal projection on the k eigenvectors, the full-spectrum map
-        satisfies ``‖Φ_t f − Φ_t^{(k)} f‖_B <= exp(−φ(λ_k) t / 2) ‖f − P f‖_B`` (every dropped
-        eigenvalue is >= λ_k and φ increasing). Returned relative to ``‖f‖_B``. Exact bound for the
-        weighted kernel with an increasing transfer function.
+        With ``P`` the W-orthogonal projection on the k eigenvectors (``W`` the spectrum's mass),
+        the full-spectrum map satisfies ``‖Φ_t f − Φ_t^{(k)} f‖_W <= exp(−φ(λ_k) t / 2) ‖f − P f‖_W``
+        (every dropped eigenvalue is >= λ_k and φ increasing). Returned relative to ``‖f‖_W``.
+        A rigorous bound for every variant with an increasing transfer function.
 
         Parameters
         ----------

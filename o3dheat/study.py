@@ -7,14 +7,20 @@ vertices (:func:`o3dheat.sampling.transfer`) and measures how far they moved:
 * ``rel_l2 = ‖d − d_ref‖_A / ‖d_ref‖_A``, with the lumped-mass (area) norm of the reference;
 * ``rel_linf = ‖d − d_ref‖∞ / ‖d_ref‖∞``.
 
-Kernels (the ``kernel`` column): "weighted" (the paper's ``X D_t Xᵀ B``, consistent mass),
-"linear" (``B := I`` in the kernel), "voronoi" (eq. (7), Voronoi areas), "lumped" (the weighted
-kernel of the lumped-mass eigenproblem, common practice). Descriptors: "hks_density",
-"hks_paper" (the two HKS forms), "smooth_height" (``Φ_t`` of the height along the reference's
-longest axis), "smooth_curvature" (``Φ_t`` of the FEM mean curvature), "eigenvalues" (λ_2..λ_k,
-one row with scale 0) and "critical_points" (the number of critical points of the smoothed
-height; both metrics are ``|c − c_ref| / c_ref``). Every sampling uses the reference's times
-(the paper's scales of its weighted spectrum), so a row compares the same t.
+Kernels (the ``kernel`` column, :data:`o3dheat.kernel.VARIANTS`), each the heat kernel of its
+own eigenproblem ``L x = λ W x``, ``K_t = X D_t Xᵀ W``: "weighted" (the paper's, ``W = B`` the
+consistent mass), "linear" (the paper's ``B := I``: ``L x = λ x``), "voronoi" (eq. (7):
+``W`` = mixed Voronoi areas), "lumped" (``W`` = lumped mass, common practice). Descriptors:
+"hks_density", "hks_paper" (the two HKS forms), "smooth_height" (``Φ_t`` of the height along the
+reference's longest axis), "smooth_curvature" (``Φ_t`` of the FEM mean curvature), "eigenvalues"
+(λ_2..λ_k of the kernel's own eigenproblem, one row with scale 0) and "critical_points" (the
+number of critical points of the smoothed height; both metrics are ``|c − c_ref| / c_ref``).
+
+Times: each kernel's scales are computed once, from its own spectrum on the reference sampling
+(the paper's grid ``t_i = (i/10)/λ_k`` by default, or the log grid), and applied unchanged to
+every resampling of that shape: one t per shape and kernel, whatever the sampling, as a user
+who picked a scale on one scan and applies it to another. (The "linear" kernel's eigenvalues are
+dimensionless and grow with the vertex spacing, so its times are not comparable to the others'.)
 
 Execution: one task per (mesh, resampling) that computes its spectra once; on a local Dask
 cluster by default, in-process with ``scheduler="sequential"``, or on any cluster by address.
@@ -37,12 +43,13 @@ from pathlib import Path
 import numpy as np
 
 from .errors import MeshError
+from .kernel import VARIANTS
 
 __all__ = ["robustness_study", "KERNELS", "DESCRIPTORS", "COLUMNS", "load_config"]
 
 log = logging.getLogger("o3dheat")
 
-KERNELS = ("weighted", "linear", "voronoi", "lumped")
+KERNELS = tuple(VARIANTS)
 DESCRIPTORS = ("hks_density", "hks_paper", "smooth_height", "smooth_curvature", "eigenvalues",
                "critical_points")
 COLUMNS = ["mesh", "resampling", "kind", "kernel", "descriptor", "scale", "t", "rel_l2", "rel_linf",
@@ -50,43 +57,41 @@ COLUMNS = ["mesh", "resampling", "kind", "kernel", "descriptor", "scale", "t", "
 
 
 # ------------------------------------------------------------------------------- computation
-def _descriptors(V, F, kernels, descriptors, k, times, axis):
-    """{(kernel, descriptor): array} on one sampling; fields are (n, T)."""
+def _descriptors(V, F, kernels, descriptors, k, times, axis, grid="paper", scales=10):
+    """({(kernel, descriptor): array} on one sampling, {kernel: times}); fields are (n, T).
+
+    Each kernel is built from its own spectrum (:func:`o3dheat.kernel.heat_kernel`). ``times``
+    maps each kernel to its times; None (the reference sampling) takes each kernel's own scales
+    (``grid``, ``scales``)."""
     from . import fem
-    from .kernel import HeatKernel
-    from .spectrum import eigensolve
+    from .kernel import heat_kernel
     from .topology import Surface, critical_points
 
     V, F = _aligned(V), _aligned(F)
     k = min(k, len(V) - 2)
-    spectra = {}
-    if {"weighted", "linear", "voronoi"} & set(kernels):
-        spectra["consistent"] = eigensolve((V, F), k=k)
-    if "lumped" in kernels:
-        spectra["lumped"] = eigensolve((V, F), k=k, mass="lumped")
     height = _aligned(V[:, axis])
     curvature = _aligned(fem.mean_curvature(V, F)) if "smooth_curvature" in descriptors else None
     surface = Surface.from_faces(len(V), F) if "critical_points" in descriptors else None
-    out = {}
+    out, used = {}, {}
     for kern in kernels:
-        spec = spectra["lumped" if kern == "lumped" else "consistent"]
-        K = HeatKernel(spec, variant="weighted" if kern == "lumped" else kern)
+        K = heat_kernel((V, F), k=k, variant=kern)
+        t = used[kern] = K.scales(scales, grid=grid) if times is None else times[kern]
         for d in descriptors:
             if d == "hks_density":
-                out[kern, d] = K.hks(times, form="density")
+                out[kern, d] = K.hks(t, form="density")
             elif d == "hks_paper":
-                out[kern, d] = K.hks(times, form="paper")
+                out[kern, d] = K.hks(t, form="paper")
             elif d == "smooth_height":
-                out[kern, d] = K.smooth(height, times)
+                out[kern, d] = K.smooth(height, t)
             elif d == "smooth_curvature":
-                out[kern, d] = K.smooth(curvature, times)
+                out[kern, d] = K.smooth(curvature, t)
             elif d == "eigenvalues":
-                out[kern, d] = spec.eigenvalues.copy()
+                out[kern, d] = K.spectrum.eigenvalues.copy()
             elif d == "critical_points":
-                H = out[kern, "smooth_height"] if (kern, "smooth_height") in out else K.smooth(height, times)
+                H = out[kern, "smooth_height"] if (kern, "smooth_height") in out else K.smooth(height, t)
                 out[kern, d] = np.array([sum(critical_points(surface, H[:, i]).counts)
-                                         for i in range(len(times))], dtype=np.float64)
-    return out
+                                         for i in range(len(t))], dtype=np.float64)
+    return out, used
 
 
 def _aligned(a):
@@ -106,15 +111,12 @@ def _reference(V, F, cfg):
     from threadpoolctl import threadpool_limits
 
     from .fem import mass_matrix
-    from .kernel import HeatKernel
     from .parallel import threads
-    from .spectrum import eigensolve
 
     with threadpool_limits(1), threads(1):
         axis = int(np.argmax(np.ptp(V, axis=0)))
-        spec = eigensolve((V, F), k=min(cfg["k"], len(V) - 2))
-        times = HeatKernel(spec).scales(cfg["scales"])
-        desc = _descriptors(V, F, cfg["kernels"], cfg["descriptors"], cfg["k"], times, axis)
+        desc, times = _descriptors(V, F, cfg["kernels"], cfg["descriptors"], cfg["k"], None, axis,
+                                   cfg["grid"], cfg["scales"])
         areas = np.asarray(mass_matrix(V, F, "lumped").diagonal())
     return {"times": times, "axis": axis, "areas": areas, "descriptors": desc, "V": V, "F": F}
 
@@ -143,7 +145,7 @@ def _task(mesh_name, res_name, spec, ref, cfg):
         with threadpool_limits(1), threads(1):
             params = {key: v for key, v in spec.items() if key not in ("kind", "name")}
             r = resample((ref["V"], ref["F"]), kind, **params)
-            desc = _descriptors(r.V, r.F, cfg["kernels"], cfg["descriptors"], cfg["k"], ref["times"], ref["axis"])
+            desc, _ = _descriptors(r.V, r.F, cfg["kernels"], cfg["descriptors"], cfg["k"], ref["times"], ref["axis"])
             rows = []
             for (kern, d), value in desc.items():
                 base = ref["descriptors"][kern, d]
@@ -155,11 +157,11 @@ def _task(mesh_name, res_name, spec, ref, cfg):
                     scales, ts = [0], [float("nan")]
                 elif d == "critical_points":
                     l2 = inf = np.abs(value - base) / np.maximum(base, 1.0)
-                    scales, ts = range(1, len(ref["times"]) + 1), ref["times"]
+                    scales, ts = range(1, len(ref["times"][kern]) + 1), ref["times"][kern]
                 else:
                     back = transfer(value, r, ref["V"])
                     l2, inf = _rel(back, base, ref["areas"])
-                    scales, ts = range(1, len(ref["times"]) + 1), ref["times"]
+                    scales, ts = range(1, len(ref["times"][kern]) + 1), ref["times"][kern]
                 for s, t, x, y in zip(scales, ts, l2, inf):
                     rows.append([mesh_name, res_name, kind, kern, d, int(s), float(t), float(x), float(y),
                                  len(r.V), ""])
@@ -277,7 +279,7 @@ def _bar(total, progress):
 
 
 def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTORS, scales=10, k=100,
-                     out=None, scheduler=None, progress=None):
+                     out=None, scheduler=None, progress=None, grid="paper"):
     """Run a robustness study (see the module docstring for what is measured).
 
     Parameters
@@ -292,9 +294,9 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
     descriptors : sequence of str
         From :data:`DESCRIPTORS`.
     scales : int
-        Number of the paper's scales.
+        Number of scales per kernel.
     k : int
-        Eigenpairs per sampling (capped at n − 2).
+        Eigenpairs per sampling and kernel (capped at n − 2).
     out : str or Path, optional
         Folder for ``tasks/*.csv`` (one file per finished task: resumable), ``study.csv`` and, when
         pyarrow is installed, ``study.parquet``. None keeps everything in memory (no resume).
@@ -303,6 +305,8 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
         "sequential": in this process; "tcp://host:port": an existing cluster.
     progress : bool, optional
         A progress bar (default: when stderr is a terminal).
+    grid : {"paper", "log"}
+        The scale grid of :meth:`o3dheat.HeatKernel.scales`, on each kernel's reference spectrum.
 
     Returns
     -------
@@ -334,7 +338,11 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
     items = _normalise_resamplings(resamplings)
     if not (isinstance(scales, (int, np.integer)) and scales >= 1 and isinstance(k, (int, np.integer)) and k >= 2):
         raise MeshError("scales must be >= 1 and k >= 2 (integers)")
-    cfg = {"kernels": kernels, "descriptors": descriptors, "scales": int(scales), "k": int(k)}
+    from .kernel import GRIDS
+
+    if grid not in GRIDS:
+        raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(GRIDS)}")
+    cfg = {"kernels": kernels, "descriptors": descriptors, "scales": int(scales), "k": int(k), "grid": grid}
     arrays = {}
     for name, mesh in meshes.items():
         p = prepare(mesh)
@@ -441,6 +449,7 @@ def load_config(path):
 
         k = 100
         scales = 10
+        grid = "paper"                   # or "log"
         kernels = ["weighted", "linear", "voronoi", "lumped"]
         descriptors = ["hks_density", "smooth_height"]
         [meshes]
@@ -465,11 +474,11 @@ def load_config(path):
     res = data.get("resampling") or []
     if not meshes or not res:
         raise MeshError(f"{path}: needs a [meshes] table and at least one [[resampling]]")
-    allowed = {"k", "scales", "kernels", "descriptors", "meshes", "resampling"}
+    allowed = {"k", "scales", "grid", "kernels", "descriptors", "meshes", "resampling"}
     unknown = set(data) - allowed
     if unknown:
         raise MeshError(f"{path}: unknown settings {sorted(unknown)}; allowed: {sorted(allowed)}")
-    kw = {key: data[key] for key in ("k", "scales", "kernels", "descriptors") if key in data}
+    kw = {key: data[key] for key in ("k", "scales", "grid", "kernels", "descriptors") if key in data}
     return {"meshes": meshes, "resamplings": res, **kw}
 
 

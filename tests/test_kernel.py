@@ -81,8 +81,9 @@ def test_scale_covariance(spec, alpha):
     f = rng_field(len(V), 5)
     for t in (0.01, 0.1, 1.0):
         np.testing.assert_allclose(K2.smooth(f, t * alpha**2), K1.smooth(f, t), rtol=1e-7, atol=1e-9)
-        # the mass-weighted HKS is dimensionless: covariant as well
-        np.testing.assert_allclose(K2.hks(t * alpha**2), K1.hks(t), rtol=1e-7)
+        # the kernel diagonal ("paper" HKS) is dimensionless: covariant as well; the density is 1/area
+        np.testing.assert_allclose(K2.hks(t * alpha**2, form="paper"), K1.hks(t, form="paper"), rtol=1e-7)
+        np.testing.assert_allclose(K2.hks(t * alpha**2) * alpha**2, K1.hks(t), rtol=1e-7)
     np.testing.assert_allclose(K2.scales(), K1.scales() * alpha**2, rtol=1e-8)
 
 
@@ -149,12 +150,46 @@ def test_exact_inverse_with_full_spectrum(full):
     np.testing.assert_allclose(K.inverse(f, 0.1), X @ (np.exp(lam * 0.05) * (X.T @ f)), atol=1e-12)
 
 
-def test_inverse_voronoi_variant(spec):
-    K = HeatKernel(spec, variant="voronoi")
-    f = rng_field(K.n, 8)
-    X, B = spec.eigenvectors, spec.mass
-    P = X @ (X.T @ (B @ f))
-    np.testing.assert_allclose(K.smooth(K.inverse(f, 0.01), 0.01), P, atol=1e-8)
+@pytest.fixture(scope="module")
+def variant_kernels():
+    """Every variant on its own truncated spectrum of the irregular mesh (k = 40 < n)."""
+    return {v: o3dheat.heat_kernel(irregular(), k=40, variant=v) for v in o3dheat.VARIANTS}
+
+
+@pytest.mark.parametrize("variant", list(o3dheat.VARIANTS))
+def test_every_variant_is_a_heat_kernel(variant_kernels, variant):
+    """K_t 1 = 1, 1ᵀ W K_t f = 1ᵀ W f, K_s K_t = K_{s+t}, K_t f -> W-weighted mean: for each variant,
+    on a truncated spectrum of an irregular mesh."""
+    K = variant_kernels[variant]
+    W = K.spectrum.mass
+    assert K.variant == variant and K.spectrum.mass_kind == o3dheat.VARIANTS[variant][0]
+    one = np.ones(K.n)
+    f = rng_field(K.n, 4) + 2.0
+    t = K.scales(4, grid="log")
+    np.testing.assert_allclose(K.smooth(one, t), 1.0, atol=1e-10)
+    np.testing.assert_allclose(one @ (W @ K.smooth(f, t)), np.full(len(t), one @ (W @ f)), rtol=1e-10)
+    for s_, t_ in ((t[0], t[1]), (t[1], t[2])):
+        np.testing.assert_allclose(K.smooth(K.smooth(f, s_), t_), K.smooth(f, s_ + t_), atol=1e-10)
+    mean = (one @ (W @ f)) / (one @ (W @ one))
+    np.testing.assert_allclose(K.smooth(f, 1e3 / K.rates[1]), mean, rtol=1e-9)
+    g = K.smooth(f, t[1])  # inverse on the span, in the variant's own inner product
+    np.testing.assert_allclose(K.smooth(K.inverse(g, t[1]), t[1]), g, atol=1e-8)
+
+
+def test_mismatched_variant_is_refused_and_would_not_be_a_kernel(variant_kernels):
+    for v, K in variant_kernels.items():
+        for other in o3dheat.VARIANTS:
+            if other != v:
+                with pytest.raises(o3dheat.MeshError, match="mass="):
+                    HeatKernel(K.spectrum, variant=other)
+    # why: the old "linear" kernel X D_t Xᵀ on the consistent-mass spectrum does not keep constants
+    X, lam = variant_kernels["weighted"].spectrum.eigenvectors, variant_kernels["weighted"].spectrum.eigenvalues
+    Kt1 = X @ (np.exp(-lam * 0.01 / 2) * (X.T @ np.ones(len(X))))
+    assert np.abs(Kt1 - 1).max() > 1.0
+    with pytest.raises(o3dheat.MeshError, match="mass"):
+        o3dheat.heat_kernel(irregular(), k=5, mass="lumped")
+    with pytest.raises(o3dheat.MeshError, match="variant"):
+        o3dheat.heat_kernel(irregular(), k=5, variant="sun")
 
 
 def test_inverse_ill_conditioned(K):
@@ -162,21 +197,50 @@ def test_inverse_ill_conditioned(K):
         K.inverse(rng_field(K.n), 1e6)
 
 
-def test_variants_match_dense_formulas(full):
-    X, lam, B, a = full.eigenvectors, full.eigenvalues, full.mass.toarray(), full.areas
+def test_variants_match_dense_formulas():
+    """Complete spectra (k = n): each variant is exactly X D_t Xᵀ W of its own generalized
+    eigenproblem, an exact heat semigroup with K_0 = I; the HKS forms are the kernel diagonal and
+    Σ e^{-λt/2} x²."""
+    import scipy.linalg as sla
+
+    V, F = icosphere(1)
+    V = V * [1.2, 1, 0.7] + 0.05 * np.random.default_rng(1).standard_normal(V.shape)
+    L = o3dheat.stiffness_matrix(V, F).toarray()
+    weights = {"weighted": o3dheat.mass_matrix(V, F).toarray(), "linear": np.eye(len(V)),
+               "voronoi": o3dheat.mass_matrix(V, F, "voronoi").toarray(),
+               "lumped": o3dheat.mass_matrix(V, F, "lumped").toarray()}
     t = 0.3
-    D = np.diag(np.exp(-lam * t / 2))
-    f = rng_field(full.n, 1)
-    expected = {"weighted": X @ D @ X.T @ B, "linear": X @ D @ X.T, "voronoi": X @ D @ X.T @ np.diag(a)}
-    for variant, Kt in expected.items():
-        K = HeatKernel(full, variant=variant)
-        np.testing.assert_allclose(K.smooth(f, t), Kt @ f, atol=1e-12)
-        np.testing.assert_allclose(K.hks(t), np.diag(Kt), atol=1e-12)  # "paper": diagonal of K_t
-        np.testing.assert_allclose(K.hks(t, form="density"), np.diag(X @ D @ X.T), atol=1e-12)
-    # the full weighted kernel is exactly the heat semigroup: K_s K_t = K_{s+t}, K_0 = I
-    Kw = HeatKernel(full)
-    np.testing.assert_allclose(Kw.smooth(Kw.smooth(f, 0.2), 0.1), Kw.smooth(f, 0.3), atol=1e-12)
-    np.testing.assert_allclose(Kw.smooth(f, 0.0), f, atol=1e-10)
+    f = rng_field(len(V), 1)
+    for variant, W in weights.items():
+        lam, X = sla.eigh(L, W)  # independent dense reference
+        lam = np.maximum(lam, 0)
+        Kt = X @ np.diag(np.exp(-lam * t / 2)) @ X.T @ W
+        K = o3dheat.heat_kernel((V, F), k=len(V), variant=variant)
+        np.testing.assert_allclose(K.spectrum.eigenvalues, lam, atol=1e-9)
+        np.testing.assert_allclose(K.smooth(f, t), Kt @ f, atol=1e-10)
+        np.testing.assert_allclose(K.hks(t, form="paper"), np.diag(Kt), atol=1e-10)
+        np.testing.assert_allclose(K.hks(t), np.diag(X @ np.diag(np.exp(-lam * t / 2)) @ X.T), atol=1e-10)
+        np.testing.assert_allclose(K.smooth(K.smooth(f, 0.2), 0.1), K.smooth(f, 0.3), atol=1e-12)
+        np.testing.assert_allclose(K.smooth(f, 0.0), f, atol=1e-9)
+        np.testing.assert_allclose(K.smooth(K.inverse(f, 0.1), 0.1), f, atol=1e-8)
+
+
+def test_log_grid_spans_the_useful_range(K):
+    t = K.scales(10, grid="log")
+    assert np.all(np.diff(t) > 0)
+    assert t[0] == pytest.approx(1 / K.rates[-1])
+    assert t[-1] == pytest.approx(2 * np.log(100) / K.rates[1])
+    f = rng_field(K.n, 3)
+    mean = (np.ones(K.n) @ (K.spectrum.mass @ f)) / K.spectrum.mass.sum()
+    last = K.smooth(f, t[-1])
+    first_dev = np.abs(K.smooth(f, 0.0) - mean).max()
+    assert np.abs(last - mean).max() < 0.02 * first_dev  # nearly constant at the end of the grid
+    paper = K.scales(10)
+    assert paper[-1] <= t[0] * (1 + 1e-12)  # the paper's grid lies below the log grid's start
+    with pytest.raises(o3dheat.MeshError, match="grid"):
+        K.scales(3, grid="linear")
+    with pytest.raises(o3dheat.MeshError, match="count"):
+        K.scales(10**8)
 
 
 def test_sphere_hks_density_matches_analytic():

@@ -30,9 +30,14 @@ def test_table_shape_and_values(sequential):
     # midpoint subdivision keeps the surface: smoothed fields move little
     sub = t[(t["kind"] == "subdivide") & (t["descriptor"] == "smooth_height") & (t["kernel"] == "weighted")]
     assert sub["rel_l2"].max() < 0.02
-    # the eigenvalues do not depend on the kernel variant, only on the mass matrix
+    # each kernel has its own spectrum and its own times (its scales on the reference sampling)
+    for kern in KERNELS:
+        K = o3dheat.heat_kernel(MESHES["sphere"], k=20, variant=kern)
+        rows = t[(t["mesh"] == "sphere") & (t["kernel"] == kern) & (t["descriptor"] == "smooth_height")]
+        for _, g in rows.groupby("resampling"):
+            np.testing.assert_allclose(g["t"].to_numpy(), K.scales(3), rtol=1e-12)
     ev = t[t["descriptor"] == "eigenvalues"].set_index(["mesh", "resampling", "kernel"])["rel_l2"]
-    assert ev.xs("weighted", level="kernel").equals(ev.xs("linear", level="kernel"))
+    assert not ev.xs("weighted", level="kernel").equals(ev.xs("linear", level="kernel"))
     back = pd.read_csv(out / "study.csv", keep_default_na=False)
     assert len(back) == len(t) and np.allclose(back["rel_l2"].astype(float), t["rel_l2"], rtol=0, atol=0)
     assert (out / "study.parquet").exists()
@@ -107,3 +112,28 @@ def test_config_cli_and_plot(tmp_path, capsys):
     cfg.write_text("k = 20\n[meshes]\n")
     assert main(["study", str(cfg), "--out", str(tmp_path / "o2")]) == 2
     assert "resampling" in capsys.readouterr().err
+
+
+def test_linear_kernel_discrepancy_is_not_the_vertex_ratio(sequential):
+    """The old study's "linear" kernel (X D_t Xᵀ on B-orthonormal eigenvectors) did not keep
+    constants: its discrepancy under decimation was |1 - n_resampled / n_reference|. The real
+    B := I kernel keeps constants, so its discrepancy is something else, and the smoothed height
+    of an unchanged sampling does not move."""
+    _, t = sequential
+    n_ref = {name: len(V) for name, (V, F) in MESHES.items()}
+    for kern in KERNELS:
+        rows = t[(t["kind"] == "decimate") & (t["descriptor"] == "smooth_height") & (t["kernel"] == kern)]
+        ratio = np.abs(1 - rows["vertices"].to_numpy() / rows["mesh"].map(n_ref).to_numpy())
+        assert np.abs(rows["rel_l2"].to_numpy() - ratio).max() > 0.05 * ratio.max()
+        assert rows["rel_l2"].max() < 0.5 * ratio.min()
+
+
+def test_study_kernels_keep_constants():
+    from o3dheat.study import _descriptors
+
+    V, F = icosphere(2)
+    V = V * [1.3, 1.0, 0.8]
+    desc, times = _descriptors(V, F, KERNELS, ["smooth_height"], 20, None, axis=0, scales=3)
+    shifted, _ = _descriptors(V + [5.0, 0, 0], F, KERNELS, ["smooth_height"], 20, times, axis=0)
+    for kern in KERNELS:  # the height along x shifted by 5: every kernel's Φ_t shifts by exactly 5 (K_t 1 = 1)
+        np.testing.assert_allclose(shifted[kern, "smooth_height"], desc[kern, "smooth_height"] + 5.0, atol=1e-9)
