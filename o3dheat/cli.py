@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from .errors import MeshError, SolverError
+from .spectrum import MASS_KINDS
 
 __all__ = ["main"]
 
@@ -43,6 +44,7 @@ unless --overwrite is given.""",
 study.toml:
   k = 60
   scales = 10
+  grid = "paper"                     # or "log": each kernel's scales on its reference spectrum
   kernels = ["weighted", "linear", "voronoi", "lumped"]
   descriptors = ["hks_density", "hks_paper", "smooth_height", "eigenvalues"]
   [meshes]
@@ -92,7 +94,8 @@ def _parser():
     s = _sub(sub, "spectrum", "compute the smallest eigenpairs of a mesh and save them")
     s.add_argument("input", help="mesh file")
     s.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
-    s.add_argument("--mass", default="consistent", choices=["consistent", "lumped", "identity"])
+    s.add_argument("--mass", default="consistent", choices=MASS_KINDS,
+                   help="mass of L x = λ B x: consistent (the paper's), lumped, voronoi or identity (B := I)")
     s.add_argument("-o", "--out", required=True, help="output .npz (eigenvalues, eigenvectors, residuals)")
     s.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
     st = _sub(sub, "study", "robustness of descriptors across resamplings (a table and plots)")

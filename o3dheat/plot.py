@@ -245,6 +245,9 @@ def scale_space(ss, title=None):
     if ss.stopped:
         for a in (a1, a2):
             a.axvline(t[ss.stop_index], color="orange", lw=1)
+    if t[0] > 0 and t[-1] > 20 * t[0]:  # a log grid of times
+        for a in (a1, a2):
+            a.set_xscale("log")
     if title:
         fig.suptitle(title, fontsize=11)
     fig.tight_layout()
@@ -294,7 +297,7 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     from .approximation import feature_driven
     from .approximation import scale_space as hierarchy
     from .diffusion import diffuse
-    from .kernel import HeatKernel
+    from .kernel import HeatKernel, heat_kernel
     from .mesh import prepare
     from .sampling import decimate, transfer
     from .spectrum import eigensolve
@@ -338,6 +341,19 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
                 ("fig1_variation.png", "‖Φ_{t_{i+1}} f − Φ_{t_i} f‖∞, ε∞ and the number of critical points "
                  "against t; the l∞ stop criterion (tolerance 1e-3 ‖f‖∞) "
                  + (f"holds at scale {ss.stop_index + 1}" if ss.stopped else "holds at none of the scales"))]
+    # the same on the log grid (1/λ_k .. 2 ln(100)/λ_2): the whole multi-scale range
+    sl = hierarchy(K, f, scales=K.scales(10, grid="log"))
+    titles = [f"f ({count(f)} critical points)"] + [
+        f"Φ_t f, log t{i + 1} = {sl.scales[i]:.3g} ({sl.critical_counts[i].sum()} c.p.)" for i in cols]
+    _save(_fields_up(up, (V, F), np.c_[f, sl.fields[:, cols]], titles=titles, ncols=4,
+                 suptitle=f"{name}: Φ_t f on the log grid 1/λ_k .. 2 ln(100)/λ_2, k = {k}"),
+          out / "fig1_log_scales.png")
+    _save(scale_space(sl, title=f"{name}: variation and critical points vs t, log grid"),
+          out / "fig1_log_variation.png")
+    entries += [("fig1_log_scales.png", "the field and Φ_t f at t1, t5, t10 of the log grid, from 1/λ_k (what k "
+                 "eigenpairs resolve) to 2 ln(100)/λ_2 (nearly constant): critical points "
+                 f"{sl.critical_counts[0].sum()} -> {sl.critical_counts[-1].sum()}"),
+                ("fig1_log_variation.png", "variation, ε∞ and critical points against t on the log grid")]
     # Fig. 2: 10 vs k eigenpairs at two scales
     panels, titles = [], []
     for KK, kk in ((K10, K10.spectrum.k), (K, k)):
@@ -353,12 +369,12 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     # Fig. 3: an irregular sampling; the Voronoi kernel (7) and the iterative scheme (8)
     Vi, Fi = decimate((V, F), reduction=0.7).arrays
     fi = transfer(f, (V, F), Vi)
-    Si = eigensolve((Vi, Fi), k=min(k, len(Vi) - 2))
-    Ki, Kv = HeatKernel(Si), HeatKernel(Si, variant="voronoi")
+    ki = min(k, len(Vi) - 2)
+    Ki, Kv = heat_kernel((Vi, Fi), ki), heat_kernel((Vi, Fi), ki, variant="voronoi")
     ti = Ki.scales()[4]
     d1 = diffuse((Vi, Fi), fi, dt=ti / 10, steps=10, scheme="implicit")
     d2 = diffuse((Vi, Fi), fi, dt=ti / 2, steps=10, scheme="implicit")
-    _save(_fields_up(up, (Vi, Fi), np.stack([fi, Kv.smooth(fi, ti), Ki.smooth(fi, ti), d1, d2], 1), ncols=5,
+    _save(_fields_up(up, (Vi, Fi), np.stack([fi, Kv.smooth(fi, Kv.scales()[4]), Ki.smooth(fi, ti), d1, d2], 1), ncols=5,
                  titles=["f (irregular sampling)", "Voronoi kernel (7), t5", "weighted kernel, t5",
                          "scheme (8), t5", "scheme (8), 5 t5"],
                  suptitle=f"{name}: irregular sampling ({len(Vi)} vertices) (Figs. 3, 6)"),
@@ -366,16 +382,16 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     entries.append(("fig3_irregular.png", "a curvature-adaptive decimation: the Voronoi kernel of eq. (7), "
                     "the weighted kernel and the implicit time stepping of eq. (8) at two times"))
     # Figs. 4-5: canonic basis functions, linear vs weighted kernel, on the irregular sampling
-    Kl = HeatKernel(Si, variant="linear")
+    Kl = heat_kernel((Vi, Fi), ki, variant="linear")  # its own spectrum (L x = λ x) and its own scales
     c = int(np.argmin(np.linalg.norm(Vi - Vi.mean(0) - [0, 0, np.ptp(Vi[:, 2]) / 2], axis=1)))
-    t1, t2 = Ki.scales()[0], Ki.scales()[4]
-    B = np.stack([Kl.canonic_basis(c, t1), Kl.canonic_basis(c, t2), Ki.canonic_basis(c, t1), Ki.canonic_basis(c, t2)], 1)
+    B = np.stack([Kl.canonic_basis(c, Kl.scales()[0]), Kl.canonic_basis(c, Kl.scales()[4]),
+                  Ki.canonic_basis(c, Ki.scales()[0]), Ki.canonic_basis(c, Ki.scales()[4])], 1)
     _save(_fields_up(up, (Vi, Fi), B, ncols=4, shared_range=False, critical_points=True,
                  titles=["linear kernel, t1", "linear kernel, t5", "weighted kernel, t1", "weighted kernel, t5"],
                  suptitle=f"{name}: canonic basis Φ_t(e_i) on the irregular sampling (Figs. 4, 5)"),
           out / "fig4_5_canonic.png")
     entries.append(("fig4_5_canonic.png", "the canonic basis function of one vertex with the linear (B := I) and "
-                    "the weighted kernel at two scales"))
+                    "the weighted kernel, each at its own scales t1 and t5 (t_i = (i/10)/λ_k of its spectrum)"))
     # Figs. 6-7: feature-driven approximation with all vs simplified critical points
     d = persistence(S, f)
     A_all = simplify_critical_points(S, f, diagram=d)

@@ -122,6 +122,22 @@ def test_smoothing_lowers_the_number_of_critical_points(which, request):
     assert np.all(ss.errors > 0)
 
 
+@pytest.mark.parametrize("which", ["kernel_regular", "kernel_irregular"])
+def test_log_grid_sweep_falls_to_a_handful(which, request):
+    """Fig. 1(d) on the log grid: from what k eigenpairs resolve down to the height's extrema, the
+    count falls overall; at the end Φ_t f is nearly its weighted mean (a handful of points)."""
+    (V, F), K = request.getfixturevalue(which)
+    f = noisy(V, amp=0.3)
+    raw = sum(o3dheat.critical_points((V, F), f).counts)
+    ss = o3dheat.scale_space(K, f, scales=K.scales(10, grid="log"))
+    total = ss.critical_counts.sum(axis=1)
+    assert raw > total[0] > total[-1]
+    assert np.corrcoef(np.log(ss.scales), total)[0, 1] < -0.7
+    assert total[-1] <= 6
+    paper = o3dheat.scale_space(K, f).critical_counts.sum(axis=1)
+    assert total[0] - total[-1] > paper[0] - paper[-1]  # it shows more than the paper's grid
+
+
 def test_scale_space_bad_input(kernel_irregular):
     (V, F), K = kernel_irregular
     f = V[:, 0]

@@ -50,7 +50,7 @@ def test_paper_figures_for_a_mesh(tmp_path):
     index = plot.paper_figures((V, F), tmp_path / "figs", k=40, name="sphere")
     text = index.read_text()
     pngs = sorted((tmp_path / "figs").glob("*.png"))
-    assert len(pngs) == 6
+    assert len(pngs) == 8
     for p in pngs:
         assert p.name in text and not_blank(p)
 
