@@ -442,18 +442,24 @@ def study(table, descriptor="hks_density", metric="rel_l2", title=None):
     kinds = sorted(t["kind"].unique())
     fig, axes = _figure(len(kinds), 1, 3.6, three_d=False)
     colors = {"weighted": "black", "linear": "tab:blue", "voronoi": "tab:orange", "lumped": "tab:green"}
+    means = t.groupby(["kind", "kernel", "scale"])[metric].mean()
+    positive = means[means > 0]
+    lo, hi = (positive.min() / 1.5, positive.max() * 1.5) if len(positive) else (None, None)
     for ax, kind in zip(axes, kinds):
-        sub = t[t["kind"] == kind]
-        mean = sub.groupby(["kernel", "scale"])[metric].mean().reset_index()
+        mean = means.loc[kind].reset_index()
         if (mean["scale"] == 0).all():
             kernels = list(mean["kernel"])
             ax.bar(kernels, mean[metric], color=[colors.get(k, "gray") for k in kernels])
+            ax.set_ylim(0, means.max() * 1.1)  # bars on a linear axis, one range for all panels
         else:
             for kern, g in mean.groupby("kernel"):
                 ax.plot(g["scale"], g[metric], "o-", color=colors.get(kern, "gray"), label=kern, ms=3)
-            ax.set_xlabel("scale i (t_i = i/10 λ_k of the reference)")
+            ax.set_xlabel("scale i (each kernel's own t_i)")
+            ax.set_xticks(sorted(mean["scale"].unique()))
             ax.legend(fontsize=8)
-        ax.set_yscale("log")
+            ax.set_yscale("log")
+            if lo is not None:
+                ax.set_ylim(lo, hi)  # one range for all panels: kinds compare at a glance
         ax.set_title(f"{kind}", fontsize=10)
         ax.set_ylabel(f"{metric} of {descriptor}")
     fig.suptitle(title or f"{descriptor}: discrepancy to the reference sampling", fontsize=11)

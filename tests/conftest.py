@@ -1,8 +1,17 @@
 """Shared test meshes, all made here (no files, no downloads)."""
 
+import os
+
 import numpy as np
 import open3d as o3d
 import pytest
+from hypothesis import settings
+
+# CI replays the same examples on every run (a red CI names a bug, not a lucky draw); locally
+# hypothesis explores new examples each time.
+settings.register_profile("ci", derandomize=True)
+if os.environ.get("CI"):
+    settings.load_profile("ci")
 
 
 def icosphere(level=3, radius=1.0):
