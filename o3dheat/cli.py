@@ -156,6 +156,25 @@ def _progress(total):
     return step, close
 
 
+def _same_file(a, b):
+    """Whether two paths name the same file (existing or not)."""
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
+    except OSError:
+        return False
+
+
+def _check_output(path, overwrite):
+    """Refuse, before any computation, an output that is a folder, lies in a missing folder, or
+    exists without --overwrite."""
+    if path.is_dir():
+        raise MeshError(f"{path} is a folder: give a file name")
+    if not path.parent.is_dir():
+        raise MeshError(f"the folder {path.parent} does not exist: create it first")
+    if path.exists() and not overwrite:
+        raise MeshError(f"{path} exists: add --overwrite to replace it")
+
+
 def _apply(args):
     from . import filters as flt
     from .io import read_geometry, write_geometry
@@ -165,8 +184,16 @@ def _apply(args):
         raise MeshError(f"the output must end in .ply or .npz: {dst}")
     if src.exists() and dst.exists() and src.resolve() == dst.resolve() and not args.overwrite:
         raise MeshError(f"refusing to overwrite the input {src}: choose another output or add --overwrite")
-    if dst.exists() and not args.overwrite:
-        raise MeshError(f"{dst} exists: add --overwrite to replace it")
+    _check_output(dst, args.overwrite)
+    if args.save_chain:
+        saved = Path(args.save_chain)
+        if saved.suffix.lower() != ".toml":
+            raise MeshError(f"--save-chain writes a TOML file: {saved} should end in .toml")
+        for other, what in ((src, "the input mesh"), (dst, "the output mesh"),
+                            (Path(args.chain) if args.chain else None, "the --chain file")):
+            if other is not None and _same_file(saved, other):
+                raise MeshError(f"--save-chain {saved} is {what}: choose another file")
+        _check_output(saved, args.overwrite)
     chain = flt.Chain.load(args.chain) if args.chain else flt.Chain()
     for text in args.filter:
         name, params = _parse_filter(text)
@@ -257,6 +284,12 @@ def _study(args):
         print(f"  {r['mesh']} / {r['resampling']}: {r['error']}")
 
 
+def _quiet_dask(record):
+    """Log filter: Dask's and its web stack's records below WARNING are dropped (see --verbose)."""
+    return record.levelno >= logging.WARNING or not record.name.startswith(("distributed", "dask", "bokeh",
+                                                                              "tornado"))
+
+
 def main(argv=None):
     """Entry point of the ``o3dheat`` command; returns the exit code.
 
@@ -269,9 +302,11 @@ def main(argv=None):
     p = _parser()
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s: %(message)s")
-    if not args.verbose:  # Dask logs every worker start and stop at INFO
+    if not args.verbose:  # Dask logs every worker start and stop at INFO, on loggers of its own levels
         for name in ("distributed", "dask"):
             logging.getLogger(name).setLevel(logging.WARNING)
+        for handler in logging.getLogger().handlers:
+            handler.addFilter(_quiet_dask)
     try:
         if args.command == "demo":
             from .demo import run

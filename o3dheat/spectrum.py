@@ -45,7 +45,7 @@ DENSE_LIMIT_N = 12_000  # above this a dense solve needs several GiB: never chos
 # the same CHOLMOD factor needs fewer solves and less work (10-20% faster for k = 10-50).
 LANCZOS_MIN_N = 10_000
 LANCZOS_MANY_K = (64, 3_000)  # (k, n): from k eigenpairs on n vertices up, Lanczos as well
-_CACHE_VERSION = "1"
+_CACHE_VERSION = "2"
 
 
 @dataclass
@@ -169,11 +169,14 @@ def _shift(B):
     return -0.01 * 4 * np.pi / area
 
 
-def _cache_key(V, F, k, mass, method):
+def _cache_key(V, F, k, mass, method, tol=1e-8, sigma=None, seed=0, block=8):
+    """Hash of everything that changes a spectrum: the geometry, k, the mass, and the solver
+    settings (a tol=1e-2 answer must never be served to a tol=1e-10 call)."""
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(V, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(F, dtype=np.int64).tobytes())
-    h.update(f"{V.shape}{F.shape}|{k}|{mass}|{method}|{_CACHE_VERSION}".encode())
+    h.update(f"{V.shape}{F.shape}|{k}|{mass}|{method}|{float(tol)!r}|{sigma!r}|{seed}|{block}|"
+             f"{_CACHE_VERSION}".encode())
     return h.hexdigest()[:32]
 
 
@@ -315,10 +318,14 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     if sigma is not None and not (np.isfinite(sigma) and sigma < 0):
         raise MeshError(f"sigma must be a negative number (L - sigma B must be positive definite), got {sigma}")
     cache_dir = None if cache in (None, False) else (default_cache_dir() if cache is True else Path(cache))
-    key = _cache_key(prep.V, prep.F, k, mass, method) if cache_dir is not None else None
+    key = _cache_key(prep.V, prep.F, k, mass, method, tol, sigma, seed, block) if cache_dir is not None else None
     L, B, areas = fem.operators(V, F, mass)
     t_asm = time.perf_counter() - t0
     cached = _cache_load(cache_dir, key) if key else None
+    if cached is not None and not _cache_valid(cached, L, B, k, tol):
+        log.warning("the cached spectrum %s does not solve this eigenproblem (tampered or corrupt): "
+                    "recomputing", key)
+        cached = None
     if cached is not None:
         lam, X, used, s, res = cached
         timings = {"assemble": t_asm, "factorize": 0.0, "solve": 0.0, "cache": True}
@@ -456,6 +463,22 @@ def _cache_load(folder, key):
     except Exception as e:  # a corrupt cache file is ignored, never fatal
         log.warning("ignoring unreadable cache file %s (%s)", path, e)
         return None
+
+
+def _cache_valid(cached, L, B, k, tol):
+    """A cached spectrum is used only if it has the right shapes, finite values, ascending
+    eigenvalues, B-unit eigenvectors and small residuals for these very operators (O(nnz k))."""
+    lam, X, _, _, _ = cached
+    r = L.shape[0]
+    if lam.shape != (k,) or X.shape != (r, k) or lam.dtype != np.float64 or X.dtype != np.float64:
+        return False
+    if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(X))) or np.any(np.diff(lam) < 0) or lam[0] < 0:
+        return False
+    BX = B @ X
+    if np.abs(np.einsum("ij,ij->j", X, BX) - 1).max() > 1e-6:
+        return False
+    res = _residuals(L, B, lam, X)
+    return bool(res.max() <= max(100 * tol, 1e-6))
 
 
 def _cache_save(folder, key, lam, X, backend, sigma, res):

@@ -122,6 +122,42 @@ def test_cli_apply_never_overwrites_by_accident(tmp_path, sphere_ply, capsys):
     assert "no such file" in capsys.readouterr().err
 
 
+def test_cli_save_chain_never_replaces_a_file_by_accident(tmp_path, sphere_ply, capsys):
+    """--save-chain obeys the no-overwrite rule and can never be the input, the output or the
+    --chain file (it used to turn the input mesh into TOML); all checked before computing."""
+    before = sphere_ply.read_bytes()
+    out = tmp_path / "o.ply"
+    chain = tmp_path / "c.toml"
+    chain.write_text('[[filter]]\nname = "scalar"\n')
+    cases = [
+        ([str(sphere_ply), str(out), "-f", "scalar", "--save-chain", str(sphere_ply)], "should end in .toml"),
+        ([str(sphere_ply), str(out), "-f", "scalar", "--save-chain", str(sphere_ply), "--overwrite"],
+         "should end in .toml"),
+        ([str(sphere_ply), str(out), "--chain", str(chain), "--save-chain", str(chain), "--overwrite"],
+         "is the --chain file"),
+        ([str(sphere_ply), str(out), "--chain", str(chain), "--save-chain", str(chain)], "is the --chain file"),
+        ([str(sphere_ply), str(out), "-f", "scalar", "--save-chain", str(tmp_path)], "should end in .toml"),
+        ([str(sphere_ply), str(out), "-f", "scalar", "--save-chain", str(tmp_path / "no" / "c.toml")],
+         "does not exist"),
+        ([str(sphere_ply), str(tmp_path / "no" / "o.ply"), "-f", "scalar"], "does not exist"),
+    ]
+    for args, message in cases:
+        assert main(["apply"] + args) == 2, args
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err
+        assert not out.exists()  # refused before anything was computed or written
+    assert sphere_ply.read_bytes() == before and chain.read_text() == '[[filter]]\nname = "scalar"\n'
+    (tmp_path / "d.ply").mkdir()
+    assert main(["apply", str(sphere_ply), str(tmp_path / "d.ply"), "-f", "scalar"]) == 2
+    assert "is a folder" in capsys.readouterr().err
+    saved = tmp_path / "saved.toml"
+    saved.write_text("keep me")
+    assert main(["apply", str(sphere_ply), str(out), "-f", "scalar", "--save-chain", str(saved)]) == 2
+    assert saved.read_text() == "keep me" and not out.exists()
+    assert main(["apply", str(sphere_ply), str(out), "-f", "scalar", "--save-chain", str(saved), "--overwrite"]) == 0
+    assert "scalar" in saved.read_text()
+
+
 def test_cli_spectrum_and_figure(tmp_path, sphere_ply, capsys):
     spec = tmp_path / "s.npz"
     assert main(["spectrum", str(sphere_ply), "-k", "9", "-o", str(spec)]) == 0

@@ -161,6 +161,23 @@ def test_cache(tmp_path, irregular_mesh):
     np.testing.assert_array_equal(a.eigenvalues, d.eigenvalues)
 
 
+def test_cache_key_has_the_tolerance_and_tampered_files_are_recomputed(tmp_path, irregular_mesh, caplog):
+    loose = o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="lanczos", tol=1e-2)
+    tight = o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="lanczos", tol=1e-10)
+    assert tight.timings["cache"] is False and len(list(tmp_path.glob("spectrum-*.npz"))) == 2
+    assert o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="lanczos", tol=1e-2).timings["cache"]
+    # a file whose arrays load but do not solve the problem is never returned
+    for p in tmp_path.glob("spectrum-*.npz"):
+        with np.load(p) as z:
+            data = dict(z)
+        data["eigenvalues"] = data["eigenvalues"] * 1.01
+        np.savez(p, **data)
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        again = o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="lanczos", tol=1e-10)
+    assert again.timings["cache"] is False and "tampered or corrupt" in caplog.text
+    np.testing.assert_allclose(again.eigenvalues, tight.eigenvalues, rtol=1e-12)
+
+
 def test_full_spectrum_dense():
     V, F = icosphere(1)
     s = o3dheat.eigensolve((V, F), k=len(V))
