@@ -59,11 +59,14 @@ class CriticalPointsFilter:
 
         site = Site(geometry, self.operators)
         f, V, F, g = site.scalar_on_surface(self.attribute, self.column)
-        kind = o3dheat.critical_points((V, F), g).kind
+        S = o3dheat.topology.Surface((V, F))  # once for both (duplicate vertices welded once)
+        kind = o3dheat.critical_points(S, g).kind
         if self.delta is not None or self.keep_fraction is not None:
-            keep = o3dheat.simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)
+            keep = o3dheat.simplify_critical_points(S, g, delta=self.delta, keep_fraction=self.keep_fraction)
             mask = np.zeros(len(kind), bool)
             mask[keep] = True
+            if S.representative is not None:  # the copies of a welded vertex follow their first copy
+                mask = mask[S.representative]
             kind[~mask] = 0
         if not site.is_mesh:  # each surface label goes to its nearest point
             from o3dheat.sampling import nearest

@@ -5,16 +5,34 @@ plain arrays: vertices ``V`` as ``(n, 3) float64`` and faces ``F`` as ``(m, 3) i
 
 Repairs applied before any FEM computation (see :func:`prepare`), each logged as a warning:
 
-* faces that repeat a vertex index (``[i, i, j]``) and exact duplicate faces are dropped;
+* duplicate vertices -- referenced vertices with exactly equal ``float64`` coordinates, as in STL
+  files and other "triangle soups" where every face has its own three vertex copies -- are
+  **welded** into one vertex (the copy with the smallest index), first, so that the faces around
+  them share it. Without this, such a file is thousands of one-triangle components and every
+  result is garbage. Results still come back per input vertex: each copy gets the value of its
+  welded vertex. A per-vertex field given by the caller is averaged over the copies of each
+  vertex (``restrict``), so ``K_t`` keeps constants and a field equal on the copies is used as
+  is. ``prepare(mesh, weld=False)`` keeps the copies apart (each then lies on a seam, a
+  boundary curve);
+* faces that repeat a vertex index (``[i, i, j]``) and exact duplicate faces are dropped (after
+  welding: a face with two coincident corners, or two copies of one face, is one of them);
 * faces of zero area (collinear or coincident corners) are dropped: they carry no surface, so
   they contribute nothing to the FEM integrals, and their cotangent weights are undefined;
 * vertices referenced by no remaining face are set aside: the computation runs on the referenced
   vertices and results are mapped back, with the value 0 at the unreferenced ones (an isolated
-  point carries no area, so no FEM function "sees" it).
+  point carries no area, so no FEM function "sees" it). An unreferenced vertex is never welded,
+  even when it lies exactly on a referenced one.
 
-Duplicate vertices (equal coordinates, different indices) and non-manifold edges or vertices are
-reported by :func:`check_mesh` but are valid input: the linear FEM sums over every triangle at an
-edge, and duplicate vertices simply form a seam (two boundary curves).
+The operators on the caller's vertices are built from those of the welded mesh (``L``, ``B``;
+``r`` welded vertices): with ``P`` the ``n x r`` 0/1 matrix of the weld map (``P[i, w[i]] = 1``)
+and ``D = diag(Pᵀ 1)`` the multiplicities, ``L_in = P D⁻¹ L D⁻¹ Pᵀ`` and
+``B_in = P D⁻¹ B D⁻¹ Pᵀ``. The expanded eigenvectors ``X_in = P X`` then satisfy
+``L_in X_in = B_in X_in Λ`` and ``X_inᵀ B_in X_in = I``, ``1ᵀ B_in 1`` is the area and the heat
+kernel ``X_in D_t X_inᵀ B_in = P X D_t Xᵀ B D⁻¹ Pᵀ`` averages the copies and keeps constants.
+
+Non-manifold edges or vertices are reported by :func:`check_mesh` but are valid input: the
+linear FEM sums over every triangle at an edge. (Topology, :mod:`o3dheat.topology`, needs a
+2-manifold; it welds duplicate vertices the same way.)
 """
 
 from __future__ import annotations
@@ -174,12 +192,40 @@ def _zero_area(V, F):
     return area <= 1e-14 * max(scale, np.finfo(float).tiny) ** 2
 
 
+
+def _weld_map(V, F):
+    """``rep`` (n,) int64: for each vertex referenced by ``F``, the smallest index of a referenced
+    vertex with exactly the same coordinates; ``rep[i] = i`` otherwise (unreferenced vertices are
+    never welded). Vectorised: one ``np.unique`` over the rows of the referenced coordinates."""
+    n = len(V)
+    rep = np.arange(n, dtype=np.int64)
+    if n == 0 or len(F) == 0:
+        return rep
+    used = np.zeros(n, bool)
+    used[F.reshape(-1)] = True
+    idx = np.flatnonzero(used)
+    # fast path (most meshes): a 64-bit hash of the coordinate bits (+ 0.0 turns -0.0 into 0.0)
+    # with no repeated value means no two rows are equal; only a repeat pays for the full unique
+    bits = (np.ascontiguousarray(V[idx], dtype=np.float64) + 0.0).view(np.uint64)
+    h = np.sort(bits[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
+                ^ bits[:, 2])
+    if not np.any(h[1:] == h[:-1]):
+        return rep
+    # rows compared as float64 values (so -0.0 == 0.0, as ``==`` says); the index of the first
+    # occurrence is the smallest (np.unique sorts stably when asked for it)
+    _, first, inv = np.unique(V[idx], axis=0, return_index=True, return_inverse=True)
+    rep[idx] = idx[first][inv.reshape(-1)]
+    return rep
+
 @dataclass
 class MeshReport:
     """What :func:`check_mesh` found. ``str(report)`` gives a readable summary.
 
     Attributes are counts (int) unless said otherwise; ``ok`` is True when o3dheat will use the
-    mesh as it is, without any repair.
+    mesh as it is, without any repair. When duplicate vertices are welded (``welded_vertices``,
+    see :func:`prepare`), the face, edge, boundary, component, Euler characteristic, genus and
+    non-manifold counts are those of the welded mesh, the one every computation uses; the vertex
+    counts are those of the input.
     """
 
     n_vertices: int
@@ -188,7 +234,7 @@ class MeshReport:
     zero_area_faces: int  # distinct corners but no area
     duplicate_faces: int
     unreferenced_vertices: int
-    duplicate_vertices: int  # vertices sharing coordinates with an earlier one
+    duplicate_vertices: int  # vertices sharing coordinates with an earlier one (any, referenced or not)
     non_manifold_edges: int  # edges with more than two faces
     non_manifold_vertices: int  # vertices whose faces form more than one fan
     boundary_edges: int
@@ -199,6 +245,7 @@ class MeshReport:
     genus: float | None  # None when not defined (non-manifold)
     area: float
     problems: list = field(default_factory=list)
+    welded_vertices: int = 0  # referenced duplicates welded into an earlier copy (0 with weld=False)
 
     @property
     def ok(self):
@@ -206,8 +253,9 @@ class MeshReport:
 
     def __str__(self):
         g = "n/a" if self.genus is None else (f"{self.genus:g}")
+        welded = f" ({self.n_vertices - self.welded_vertices} after welding)" if self.welded_vertices else ""
         lines = [
-            f"vertices: {self.n_vertices}   faces: {self.n_faces}   area: {self.area:.6g}",
+            f"vertices: {self.n_vertices}{welded}   faces: {self.n_faces}   area: {self.area:.6g}",
             f"components: {self.components}   boundary loops: {self.boundary_loops}   "
             f"Euler characteristic: {self.euler_characteristic}   genus: {g}",
             f"degenerate faces: {self.degenerate_faces}   zero-area faces: {self.zero_area_faces}   "
@@ -254,15 +302,19 @@ def _non_manifold_vertices(F, n):
     return int(np.sum(per_vertex > 1))
 
 
-def check_mesh(mesh):
+def check_mesh(mesh, weld=True):
     """Inspect a mesh and report everything that matters to the FEM operators.
 
     Unlike :func:`as_arrays` it never raises on a bad mesh (except when it cannot read one at
-    all); it counts the problems instead.
+    all); it counts the problems instead. Duplicate vertices (referenced, exactly coincident) are
+    welded first, as :func:`prepare` does: the report then describes the mesh that every
+    computation uses, and its status names the weld (``ok`` is False).
 
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
+    weld : bool
+        As for :func:`prepare`: False reports the mesh with its copies apart.
 
     Returns
     -------
@@ -271,14 +323,22 @@ def check_mesh(mesh):
         non-manifold edges and vertices, boundary loops, connected components, non-finite
         coordinates; the Euler characteristic ``V - E + F`` (of the referenced part) and the
         genus ``(2 c - chi - b) / 2`` (for a manifold mesh, with ``c`` components and ``b``
-        boundary loops).
+        boundary loops), all after welding; ``welded_vertices``.
 
     Examples
     --------
-    >>> import open3d as o3d, o3dheat
+    >>> import numpy as np, open3d as o3d, o3dheat
     >>> r = o3dheat.check_mesh(o3d.t.geometry.TriangleMesh.create_torus())
     >>> r.euler_characteristic, r.genus, r.ok
     (0, 1.0, True)
+
+    The same torus as a triangle soup (every face with its own three vertex copies, as read from
+    an STL file):
+
+    >>> V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_torus())
+    >>> r = o3dheat.check_mesh((V[F].reshape(-1, 3), np.arange(3 * len(F)).reshape(-1, 3)))
+    >>> r.welded_vertices, r.components, r.genus, r.ok
+    (3000, 1, 1.0, False)
     """
     pair = _pair(mesh)
     V = np.asarray(pair[0], dtype=np.float64).reshape(-1, 3)
@@ -296,17 +356,25 @@ def check_mesh(mesh):
         m = len(F)
     if nonfinite:
         problems.append(f"{nonfinite} non-finite vertices")
+    used_in = np.zeros(n, bool)
+    used_in[F.reshape(-1)] = True
+    unref = int(n - used_in.sum())
+    _, first = np.unique(V, axis=0, return_index=True) if n else (None, np.zeros(0))
+    dup_verts = int(n - len(first))
+    welded, used = 0, used_in
+    if weld and not nonfinite:  # (a non-finite mesh is reported, not welded)
+        wmap = _weld_map(V, F)
+        welded = int(np.sum(wmap != np.arange(n)))
+        if welded:
+            F = wmap[F]
+            used = np.zeros(n, bool)
+            used[F.reshape(-1)] = True
     degenerate = _degenerate(F)
     Fs = np.sort(F[~degenerate], axis=1)
     dup_faces = len(Fs) - len(_unique_rows(Fs)) if len(Fs) else 0
     finite = np.all(np.isfinite(V), axis=1)
     good = F[~degenerate]
     zero = int(np.sum(_zero_area(np.where(finite[:, None], V, 0.0), good))) if len(good) else 0
-    used = np.zeros(n, bool)
-    used[F.reshape(-1)] = True
-    unref = int(n - used.sum())
-    _, first = np.unique(V, axis=0, return_index=True) if n else (None, np.zeros(0))
-    dup_verts = int(n - len(first))
     E, counts = _edges(good) if len(good) else (np.zeros((0, 2), int), np.zeros(0, int))
     nm_edges = int(np.sum(counts > 2))
     bE = E[counts == 1]
@@ -323,6 +391,9 @@ def check_mesh(mesh):
     if nm_edges == 0 and nm_verts == 0 and len(good):
         genus = (2 * components - chi - loops) / 2
     area = float(face_areas(np.where(finite[:, None], V, 0.0), good).sum()) if len(good) else 0.0
+    if welded:
+        problems.append(f"welded {welded} duplicate vertices (exactly coincident coordinates) into "
+                        f"{n - welded - unref}; the counts above are of the welded mesh")
     if degenerate.any():
         problems.append(f"{int(degenerate.sum())} degenerate faces (dropped)")
     if zero:
@@ -333,7 +404,7 @@ def check_mesh(mesh):
         problems.append(f"{unref} unreferenced vertices (set aside, value 0 in results)")
     return MeshReport(n, int(len(F)), int(degenerate.sum()), zero, int(dup_faces), unref, dup_verts,
                       nm_edges, nm_verts, int(len(bE)), loops, int(components), nonfinite, chi,
-                      genus, area, problems)
+                      genus, area, problems, welded)
 
 
 @dataclass(frozen=True)
@@ -343,41 +414,124 @@ class Prepared:
     Attributes
     ----------
     V : (r, 3) float64 ndarray
-        The referenced vertices.
+        The referenced, welded vertices.
     F : (m, 3) int64 ndarray
         Faces re-indexed into ``V``.
     keep : (r,) int64 ndarray
-        ``keep[j]`` is the caller's index of vertex ``j``.
+        ``keep[j]`` is the caller's index of vertex ``j`` (for a welded vertex: its first copy),
+        so ``keep[F]`` is a face list in the caller's numbering.
     n_input : int
         Number of vertices of the caller's mesh.
+    weld : (n_input,) int64 ndarray or None
+        ``weld[i]``: the vertex of ``V`` that the caller's vertex ``i`` is (a copy of), -1 when
+        it is unreferenced. None when no vertex was welded (then it is the inverse of ``keep``:
+        see :attr:`vertex_map`).
+
+    Notes
+    -----
+    With ``P`` the ``n_input x r`` matrix ``P[i, w[i]] = 1`` (:meth:`selection`) and ``D`` the
+    diagonal of the multiplicities ``Pᵀ 1`` (:attr:`multiplicity`): :meth:`expand` is ``P X``,
+    :meth:`restrict` is ``D⁻¹ Pᵀ f`` (the mean over the copies) and :meth:`expand_operator` is
+    ``P D⁻¹ A D⁻¹ Pᵀ`` (see the module docstring for why).
     """
 
     V: np.ndarray
     F: np.ndarray
     keep: np.ndarray
     n_input: int
+    weld: np.ndarray | None = None
+
+    @property
+    def vertex_map(self):
+        """(n_input,) int64: the vertex of ``V`` of each input vertex, -1 where unreferenced."""
+        if self.weld is not None:
+            return self.weld
+        w = np.full(self.n_input, -1, dtype=np.int64)
+        w[self.keep] = np.arange(len(self.keep))
+        return w
+
+    @property
+    def multiplicity(self):
+        """(r,) int64: how many input vertices each vertex of ``V`` stands for (1 unless welded)."""
+        if self.weld is None:
+            return np.ones(len(self.keep), dtype=np.int64)
+        w = self.weld
+        return np.bincount(w[w >= 0], minlength=len(self.keep))
+
+    def selection(self):
+        """``P``, the ``(n_input, r)`` 0/1 sparse matrix with ``P[i, vertex_map[i]] = 1``."""
+        w = self.vertex_map
+        rows = np.flatnonzero(w >= 0)
+        return sp.csc_matrix((np.ones(len(rows)), (rows, w[rows])), shape=(self.n_input, len(self.keep)))
 
     def expand(self, X):
-        """Map per-vertex values (r, ...) back to the caller's n_input vertices (0 elsewhere)."""
+        """Map per-vertex values (r, ...) back to the caller's n_input vertices: ``X[w]``, so the
+        copies of a welded vertex get its value, and 0 at unreferenced vertices.
+
+        Examples
+        --------
+        >>> import numpy as np, o3dheat.mesh as m
+        >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]])
+        >>> p = m.prepare((V, np.array([[0, 1, 2], [3, 4, 5]])))      # 3 and 5 copy 1 and 2
+        >>> p.expand(np.array([10.0, 11, 12, 14])).tolist()
+        [10.0, 11.0, 12.0, 11.0, 14.0, 12.0]
+        """
         X = np.asarray(X)
-        if len(self.keep) == self.n_input:
-            return X
-        out = np.zeros((self.n_input,) + X.shape[1:], dtype=X.dtype)
-        out[self.keep] = X
+        if self.weld is None:
+            if len(self.keep) == self.n_input:
+                return X
+            out = np.zeros((self.n_input,) + X.shape[1:], dtype=X.dtype)
+            out[self.keep] = X
+            return out
+        w = self.weld
+        out = X[np.maximum(w, 0)]
+        out[w < 0] = 0
         return out
 
     def restrict(self, f):
-        """Per-vertex values of the caller's mesh (n_input, ...) restricted to the kept vertices."""
+        """Per-vertex values of the caller's mesh (n_input, ...) on the vertices of ``V``: the mean
+        over the copies of each welded vertex (the value itself when there is one copy).
+
+        Examples
+        --------
+        >>> import numpy as np, o3dheat.mesh as m
+        >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]])
+        >>> p = m.prepare((V, np.array([[0, 1, 2], [3, 4, 5]])))
+        >>> p.restrict(np.array([0.0, 1, 2, 3, 4, 5])).tolist()    # vertex 1: mean of 1 and 3
+        [0.0, 2.0, 3.5, 4.0]
+        """
         f = np.asarray(f)
-        return f if len(self.keep) == self.n_input else f[self.keep]
+        if self.weld is None:
+            return f if len(self.keep) == self.n_input else f[self.keep]
+        # the first copy's value plus the mean deviation of the copies from it: exact when the
+        # copies agree (a field that came from expand comes back bit for bit)
+        w = self.weld
+        mean = sp.diags(1.0 / self.multiplicity) @ self.selection().T.tocsr()
+        flat = f.reshape(self.n_input, -1).astype(np.result_type(f.dtype, np.float64))
+        base = flat[self.keep]
+        dev = flat - base[np.maximum(w, 0)]
+        dev[w < 0] = 0.0
+        return (base + mean @ dev).reshape((len(self.keep),) + f.shape[1:])
+
+    def expand_operator(self, A):
+        """An (r, r) operator on ``V`` as an (n_input, n_input) one: ``P D⁻¹ A D⁻¹ Pᵀ`` (``P A Pᵀ``
+        when nothing was welded), in CSC. Its quadratic form on ``P x`` is that of ``A`` on ``x``.
+        """
+        P = self.selection()
+        if self.weld is not None:
+            P = P @ sp.diags(1.0 / self.multiplicity)
+        return sp.csc_matrix(P @ A @ P.T)
 
 
-def prepare(mesh):
+def prepare(mesh, weld=True):
     """Convert and repair a mesh for the FEM operators (see the module docstring for the rules).
 
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
+    weld : bool
+        Weld the referenced vertices with exactly equal coordinates (the default; logged as a
+        warning with their number). False keeps them apart: each copy then lies on a boundary.
 
     Returns
     -------
@@ -395,9 +549,23 @@ def prepare(mesh):
     >>> p = m.prepare((V, np.array([[0, 1, 2]])))
     >>> p.keep.tolist(), p.n_input
     ([0, 1, 2], 4)
+
+    Two triangles with their own vertex copies (an STL file): welded into 4 vertices.
+
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]])
+    >>> p = m.prepare((V, np.array([[0, 1, 2], [3, 4, 5]])))
+    >>> p.F.tolist(), p.keep.tolist(), p.weld.tolist()
+    ([[0, 1, 2], [1, 3, 2]], [0, 1, 2, 4], [0, 1, 2, 1, 3, 2])
     """
     V, F = as_arrays(mesh)
     n = len(V)
+    rep = _weld_map(V, F) if weld else None
+    welded = 0 if rep is None else int(np.sum(rep != np.arange(n)))
+    if welded:
+        log.warning("welded %d duplicate vertices (exactly coincident coordinates) into %d: results "
+                    "are given per input vertex, each copy with the value of its welded vertex",
+                    welded, len(np.unique(rep[F.reshape(-1)])))
+        F = rep[F]
     degenerate = _degenerate(F)
     if degenerate.any():
         log.warning("dropping %d degenerate faces (a vertex index repeated)", int(degenerate.sum()))
@@ -419,7 +587,12 @@ def prepare(mesh):
     if used.all():
         return Prepared(V, F, np.arange(n), n)
     keep = np.flatnonzero(used)
-    log.warning("%d unreferenced vertices set aside; they get the value 0 in every result", n - len(keep))
+    # after welding, the copies are referenced by no face: they are not "set aside"
+    unref = n - len(keep) - welded
+    if welded:
+        unref += int(np.sum(~used[rep] & (rep != np.arange(n))))  # copies whose faces all went
+    if unref:
+        log.warning("%d unreferenced vertices set aside; they get the value 0 in every result", unref)
     remap = np.full(n, -1, dtype=np.int64)
     remap[keep] = np.arange(len(keep))
-    return Prepared(V[keep], remap[F], keep, n)
+    return Prepared(V[keep], remap[F], keep, n, remap[rep] if welded else None)

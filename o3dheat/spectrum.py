@@ -57,15 +57,18 @@ class Spectrum:
     eigenvalues : (k,) float64 ndarray
         Ascending, ``>= 0``, in units of 1/length² (for mass "identity": dimensionless).
     eigenvectors : (n, k) float64 ndarray
-        B-orthonormal columns with fixed signs (0 at unreferenced vertices).
+        B-orthonormal columns with fixed signs (0 at unreferenced vertices; the copies of a
+        welded duplicate vertex share its value, see :mod:`o3dheat.mesh`).
     stiffness : (n, n) scipy.sparse.csc_matrix
-        The cotangent matrix ``L``.
+        The cotangent matrix ``L`` (on welded duplicates: ``P D⁻¹ L D⁻¹ Pᵀ``, see :mod:`o3dheat.mesh`).
     mass : (n, n) scipy.sparse.csc_matrix
-        ``B`` as chosen by ``mass_kind`` (the identity for "identity").
+        ``B`` as chosen by ``mass_kind`` (the identity for "identity"; on welded duplicates
+        ``P D⁻¹ B D⁻¹ Pᵀ``).
     mass_kind : str
         "consistent", "lumped", "voronoi" or "identity" (:func:`eigensolve_operators`: "given").
     areas : (n,) float64 ndarray
-        Mixed Voronoi areas of the vertices (for the Voronoi kernel of eq. (7)).
+        Mixed Voronoi areas of the vertices (for the Voronoi kernel of eq. (7)); the copies of a
+        welded vertex share its area equally (the row sums of the "voronoi" mass).
     backend : str
         Factorization used: "cholmod", "cholespy", "superlu", or "dense".
     residuals : (k,) float64 ndarray
@@ -253,10 +256,11 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
         Any triangle mesh; boundaries are free (Neumann). Repairs of :func:`o3dheat.mesh.prepare`
-        apply (unreferenced vertices get 0 in every eigenvector).
+        apply: exactly coincident vertices are welded (each copy gets its welded vertex's
+        values), unreferenced vertices get 0 in every eigenvector.
     k : int
-        Number of eigenpairs, ``1 <= k <= n`` (``n`` referenced vertices); ``k = n`` is the full
-        spectrum (dense solver).
+        Number of eigenpairs, ``1 <= k <= n`` (``n`` referenced vertices, after welding); ``k = n``
+        is the full spectrum (dense solver).
     mass : {"consistent", "lumped", "voronoi", "identity"}
         ``B``: the paper's consistent FEM mass, its lumped diagonal (row sums), the diagonal of
         mixed Voronoi areas (eq. (7)), or ``I`` (the paper's "B := I" linear FEM kernel). Each is
@@ -335,10 +339,10 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         if key:
             _cache_save(cache_dir, key, lam, X, used, s, res)
     n = prep.n_input
-    if r < n:
-        keep = prep.keep
-        P = sp.csc_matrix((np.ones(r), (keep, np.arange(r))), shape=(n, r))
-        L, B = sp.csc_matrix(P @ L @ P.T), sp.csc_matrix(P @ B @ P.T)
+    if r < n:  # unreferenced or welded vertices: operators P D⁻¹ A D⁻¹ Pᵀ, X_in = P X (see mesh)
+        L, B = prep.expand_operator(L), prep.expand_operator(B)
+        if prep.weld is not None:
+            areas = areas / prep.multiplicity  # the copies share the area: its sum stays the area
         X, areas = prep.expand(X), prep.expand(areas)
     return Spectrum(lam, X, sp.csc_matrix(L), sp.csc_matrix(B), mass, areas, used, res, s, timings,
                     faces=prep.keep[F])

@@ -24,6 +24,12 @@ Conventions (each one is tested):
   in at most two faces and every vertex with one fan of faces (:class:`~o3dheat.MeshError`
   otherwise, with advice). Faces repeating a vertex and duplicate faces are dropped with a
   warning; vertices referenced by no face are not part of the surface and never critical.
+* **Duplicate vertices** (referenced, exactly equal coordinates: STL files, triangle soups) are
+  welded as for the FEM (:func:`o3dheat.mesh.prepare`) when the mesh comes with coordinates
+  (not by :meth:`Surface.from_faces`): the faces use the first copy of each vertex, so results
+  are those of the welded mesh. Vertex indices (critical points, pairs) name that first copy; a
+  field is averaged over the copies of each vertex; per-vertex outputs
+  (:attr:`CriticalPoints.kind`) give every copy the value of its welded vertex.
 
 Persistence pairs the critical points of the lower-star filtration (Edelsbrunner, Letscher and
 Zomorodian 2002). Dimension 0 pairs a minimum with the saddle that merges its sublevel component
@@ -47,7 +53,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .errors import MeshError
-from .mesh import _degenerate, _unique_rows, as_arrays
+from .mesh import _degenerate, _unique_rows, _weld_map, as_arrays
 
 __all__ = ["CriticalPoints", "PersistenceDiagram", "critical_points", "persistence",
            "simplify_critical_points", "level_sets", "Surface"]
@@ -67,6 +73,9 @@ class Surface:
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh, (V, F) tuple or Surface
         The triangle mesh (a Surface is returned as is by :meth:`of`).
+    weld : bool
+        Weld referenced vertices with exactly equal coordinates first (the default, logged as a
+        warning; see the module docstring).
 
     Attributes
     ----------
@@ -85,6 +94,9 @@ class Surface:
         Number of neighbours.
     euler_characteristic : int
         ``V − E + F`` of the referenced part.
+    representative : (n,) int64 ndarray or None
+        After welding, the vertex standing for each vertex (its first copy; itself when it is not
+        a duplicate); None when nothing was welded.
 
     Raises
     ------
@@ -99,9 +111,17 @@ class Surface:
     (0, 0)
     """
 
-    def __init__(self, mesh):
+    def __init__(self, mesh, weld=True):
         V, F = as_arrays(mesh)
         self.V = V
+        self.representative = None
+        if weld:
+            rep = _weld_map(V, F)
+            welded = int(np.sum(rep != np.arange(len(V))))
+            if welded:
+                log.warning("welded %d duplicate vertices (exactly coincident coordinates): the faces "
+                            "use the first copy of each vertex", welded)
+                self.representative, F = rep, rep[F]
         self._build(len(V), F)
 
     @classmethod
@@ -111,9 +131,10 @@ class Surface:
 
     @classmethod
     def from_faces(cls, n, F, V=None):
-        """A Surface from a vertex count and faces (no coordinates needed)."""
+        """A Surface from a vertex count and faces (no coordinates needed; no welding)."""
         self = cls.__new__(cls)
         self.V = V
+        self.representative = None
         F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
         if len(F) == 0:
             raise MeshError("the mesh has no faces")
@@ -213,6 +234,11 @@ class Surface:
         if bad.any():
             raise MeshError(f"{name} has {int(bad.sum())} NaN or infinite values (first at vertex "
                             f"{int(np.flatnonzero(bad)[0])})")
+        rep = self.representative
+        if rep is not None:  # welded: the mean over the copies of each vertex, on every copy, as
+            # the first copy's value plus the mean deviation (exact when the copies agree)
+            dev = np.bincount(rep, weights=arr - arr[rep], minlength=self.n)
+            arr = arr[rep] + (dev / np.bincount(rep, minlength=self.n).clip(1))[rep]
         return arr
 
 
@@ -259,6 +285,8 @@ class CriticalPoints:
         Same length as ``saddles``: ``k − 1`` for a lower link of ``k`` arcs (monkey saddle: 2).
     n : int
         Number of vertices of the mesh.
+    representative : (n,) int64 ndarray or None
+        :attr:`Surface.representative` of the mesh (duplicate vertices welded), else None.
     """
 
     minima: np.ndarray
@@ -266,6 +294,7 @@ class CriticalPoints:
     saddle_multiplicity: np.ndarray
     maxima: np.ndarray
     n: int
+    representative: np.ndarray | None = None
 
     @property
     def euler_characteristic(self):
@@ -279,12 +308,13 @@ class CriticalPoints:
 
     @property
     def kind(self):
-        """(n,) int8 per vertex: 0 regular, 1 minimum, 2 saddle, 3 maximum."""
+        """(n,) int8 per vertex: 0 regular, 1 minimum, 2 saddle, 3 maximum (the copies of a welded
+        duplicate vertex: the kind of their first copy)."""
         out = np.zeros(self.n, np.int8)
         out[self.minima] = MINIMUM
         out[self.saddles] = SADDLE
         out[self.maxima] = MAXIMUM
-        return out
+        return out if self.representative is None else out[self.representative]
 
     def same_as(self, other):
         """True when both have the same minima, saddles (with multiplicities) and maxima."""
@@ -356,7 +386,7 @@ def critical_points(mesh, f):
     _, _, mult, minima, maxima = _classify(S, rank)
     saddles = np.flatnonzero(mult > 0)
     return CriticalPoints(np.flatnonzero(minima), saddles, mult[saddles].astype(np.int64),
-                          np.flatnonzero(maxima), S.n)
+                          np.flatnonzero(maxima), S.n, S.representative)
 
 
 def _warn_constant(f, S):

@@ -170,11 +170,79 @@ def test_unreferenced_vertices_mapped_back(sphere3):
     assert g[0] == 0 and np.all(np.isfinite(g))
 
 
-def test_duplicate_vertices_form_a_seam():
-    # split a sphere along a meridian seam: duplicate vertices, still a valid surface with boundary
+def test_duplicate_vertex_reported_and_welded():
+    # one face uses a copy of vertex 0 (a seam of one face): welded, it is the sphere again
     V, F = icosphere(2)
-    r = o3dheat.check_mesh((np.concatenate([V, V[:1]]), np.concatenate([F, [[len(V), 1, 2]]])))
-    assert r.duplicate_vertices == 1
+    i = int(np.flatnonzero((F == 0).any(axis=1))[0])
+    F2 = F.copy()
+    F2[i] = np.where(F[i] == 0, len(V), F[i])
+    mesh = (np.concatenate([V, V[:1]]), F2)
+    r = o3dheat.check_mesh(mesh)
+    assert r.duplicate_vertices == 1 and r.welded_vertices == 1 and r.boundary_loops == 0
+    assert (r.components, r.euler_characteristic, r.genus) == (1, 2, 0) and not r.ok
+    p = prepare(mesh)
+    assert p.weld.tolist() == list(range(len(V))) + [0]
+    np.testing.assert_array_equal(p.F, F)
+    # opt-out: the copy stays apart, on a boundary
+    r = o3dheat.check_mesh(mesh, weld=False)
+    assert r.welded_vertices == 0 and r.boundary_loops == 1 and r.duplicate_vertices == 1
+    assert prepare(mesh, weld=False).weld is None
+
+
+def split_vertices(V, F):
+    """Every face with its own three vertex copies (what an STL file stores)."""
+    return V[F].reshape(-1, 3), np.arange(3 * len(F)).reshape(-1, 3)
+
+
+def first_copy_weld(V):
+    """Reference weld map: vertices numbered by their first copy (np.unique, not o3dheat)."""
+    _, first, inv = np.unique(V, axis=0, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[inv.reshape(-1)], np.sort(first)
+
+
+@pytest.mark.parametrize("mesh", [icosphere(2), torus(), grid(1, 1, 6, 5)])
+def test_weld_split_mesh(mesh, caplog):
+    V, F = mesh
+    Vs, Fs = split_vertices(V, F)
+    w, first = first_copy_weld(Vs)
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        p = prepare((Vs, Fs))
+    assert f"welded {len(Vs) - len(V)} duplicate vertices" in caplog.text
+    np.testing.assert_array_equal(p.weld, w)
+    np.testing.assert_array_equal(p.keep, first)
+    np.testing.assert_array_equal(p.V, Vs[first])
+    np.testing.assert_array_equal(p.vertex_map, w)
+    assert p.multiplicity.sum() == len(Vs) and len(p.F) == len(F)
+    np.testing.assert_array_equal(p.F, w[Fs])  # no face lost, in the input's order
+    # expand copies each welded value; restrict takes the mean over the copies
+    x = np.arange(len(p.V), dtype=float)
+    np.testing.assert_array_equal(p.expand(x), x[w])
+    np.testing.assert_array_equal(p.restrict(p.expand(x)), x)
+    f = np.random.default_rng(0).standard_normal((len(Vs), 2))
+    want = np.stack([np.bincount(w, f[:, j]) / np.bincount(w) for j in range(2)], 1)
+    np.testing.assert_allclose(p.restrict(f), want, rtol=1e-13, atol=1e-15)
+    # the report: the welded mesh's topology, and not "ok"
+    r, r0 = o3dheat.check_mesh((Vs, Fs)), o3dheat.check_mesh(mesh)
+    assert (r.components, r.euler_characteristic, r.genus, r.boundary_loops) == \
+        (r0.components, r0.euler_characteristic, r0.genus, r0.boundary_loops)
+    assert r.welded_vertices == len(Vs) - len(V) and not r.ok
+    assert "welded" in str(r) and f"({len(V)} after welding)" in str(r)
+    assert o3dheat.check_mesh((Vs, Fs), weld=False).components == len(F)
+
+
+def test_weld_leaves_unreferenced_copies_and_clean_meshes(sphere3):
+    V, F = sphere3
+    p = prepare((V, F))
+    assert p.weld is None and np.array_equal(p.vertex_map, np.arange(len(V)))
+    x = np.arange(len(V), dtype=float)
+    assert p.expand(x) is x and p.restrict(x) is x
+    # an unreferenced vertex on a referenced one is not welded: it is set aside (value 0)
+    p = prepare((np.concatenate([V, V[:1]]), F))
+    assert p.weld is None and p.vertex_map[-1] == -1
+    s = o3dheat.eigensolve((np.concatenate([V, V[:1]]), F), k=4)
+    np.testing.assert_array_equal(s.eigenvectors[-1], 0)
 
 
 @pytest.mark.parametrize("high", [5, 1000, 10**7])  # 10**7: three columns do not fit one int64 key

@@ -300,3 +300,83 @@ def test_lanczos_failure_falls_back(monkeypatch, irregular_mesh, caplog):
         s = o3dheat.eigensolve(irregular_mesh, k=12, method="lanczos")
     assert "falling back to 'arpack'" in caplog.text
     np.testing.assert_allclose(s.eigenvalues, ref.eigenvalues, rtol=1e-10, atol=1e-12)
+
+
+# ---------------------------------------------------------------- unwelded meshes (issue 13)
+def _split(V, F):
+    """Every face with its own three vertex copies (an STL file), and the reference weld: the
+    welded mesh numbered by first copies, and the map input vertex -> welded vertex."""
+    Vs, Fs = V[F].reshape(-1, 3), np.arange(3 * len(F)).reshape(-1, 3)
+    _, first, inv = np.unique(Vs, axis=0, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    w = rank[inv.reshape(-1)]
+    return (Vs, Fs), (Vs[np.sort(first)], w[Fs]), w
+
+
+def _check_welded_spectrum(su, sw, w, k):
+    np.testing.assert_allclose(su.eigenvalues, sw.eigenvalues, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(su.eigenvectors, sw.eigenvectors[w], rtol=0, atol=1e-12)
+    X, L, B = su.eigenvectors, su.stiffness, su.mass
+    np.testing.assert_allclose(X.T @ (B @ X), np.eye(k), atol=1e-10)
+    scale = abs(L).max() * max(abs(X).max(), 1)
+    np.testing.assert_allclose(L @ X, (B @ X) * su.eigenvalues, atol=1e-8 * scale)
+    np.testing.assert_allclose(B.sum(), sw.mass.sum(), rtol=1e-12)
+    np.testing.assert_allclose(su.areas.sum(), sw.areas.sum(), rtol=1e-12)
+
+
+@pytest.mark.parametrize("mass", ["consistent", "voronoi", "identity"])
+def test_split_vertex_mesh_equals_welded(mass):
+    V, F = icosphere(2)
+    soup, welded, w = _split(V, F)
+    su, sw = o3dheat.eigensolve(soup, k=12, mass=mass), o3dheat.eigensolve(welded, k=12, mass=mass)
+    assert su.n == len(soup[0]) and sw.n == len(V)
+    _check_welded_spectrum(su, sw, w, 12)
+    np.testing.assert_array_equal(su.faces, np.sort(np.unique(w, return_index=True)[1])[welded[1]])
+    # the kernel: a field equal on the copies gives the welded result on every copy; constants kept
+    Ku, Kw = o3dheat.HeatKernel(su), o3dheat.HeatKernel(sw)
+    t = Kw.scales(4)
+    g = welded[0][:, 0] + np.sin(3 * welded[0][:, 2])
+    np.testing.assert_allclose(Ku.smooth(g[w], t), Kw.smooth(g, t)[w], atol=1e-12)
+    np.testing.assert_allclose(Ku.smooth(np.ones(su.n), t), 1.0, atol=1e-12)
+    # a field that differs between copies is averaged over them
+    f = np.random.default_rng(0).standard_normal(su.n)
+    mean = np.bincount(w, f) / np.bincount(w)
+    np.testing.assert_allclose(Ku.smooth(f, t), Kw.smooth(mean, t)[w], atol=1e-12)
+
+
+def test_split_vertex_diffusion_equals_welded():
+    V, F = grid(1, 1, 8, 6)
+    soup, welded, w = _split(V, F)
+    f = np.cos(3 * welded[0][:, 0]) + welded[0][:, 1]
+    for scheme in ("explicit", "implicit"):
+        a = o3dheat.diffuse(soup, f[w], dt=1e-4, steps=5, scheme=scheme)
+        b = o3dheat.diffuse(welded, f, dt=1e-4, steps=5, scheme=scheme)
+        np.testing.assert_allclose(a, b[w], atol=1e-13)
+
+
+def test_stl_round_trip_is_welded(tmp_path, caplog):
+    from o3dheat.demo import sample_mesh
+
+    path = str(tmp_path / "bunny.stl")
+    m = sample_mesh("bunny").to_legacy()
+    assert o3d.io.write_triangle_mesh(path, m.compute_triangle_normals())
+    stl = o3d.io.read_triangle_mesh(path)
+    Vs, Fs = o3dheat.as_arrays(stl)
+    assert len(Vs) > 2.99 * len(Fs) and len(Vs) > 5 * len(m.vertices)  # (nearly) 3 copies per face
+    _, first, inv = np.unique(Vs, axis=0, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    w = rank[inv.reshape(-1)]
+    welded = (Vs[np.sort(first)], w[Fs])
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        su = o3dheat.eigensolve(stl, k=10)
+    assert f"welded {len(Vs) - len(first)} duplicate vertices" in caplog.text
+    sw = o3dheat.eigensolve(welded, k=10)
+    assert su.eigenvalues[1] > 1.0  # not the all-zero spectrum of 56k one-triangle components
+    _check_welded_spectrum(su, sw, w, 10)
+    r, rw = o3dheat.check_mesh(stl), o3dheat.check_mesh(welded)
+    assert rw.ok and not r.ok and r.welded_vertices == len(Vs) - len(first)
+    assert (r.components, r.euler_characteristic, r.genus, r.boundary_loops) == \
+        (rw.components, rw.euler_characteristic, rw.genus, rw.boundary_loops) == (1, 2, 0, 0)
+    assert "welded" in str(r).splitlines()[-1]

@@ -384,3 +384,59 @@ def test_level_sets_bad_input():
         with pytest.raises(o3dheat.MeshError):
             o3dheat.level_sets((V, F), V[:, 2], **kwargs)
     assert len(o3dheat.level_sets((V, F), V[:, 2], values=[5.0]).lines) == 0
+
+
+# ---------------------------------------------------------------- unwelded meshes (issue 13)
+@pytest.mark.parametrize("mesh", [torus(1.0, 0.4, 24, 12), grid(1, 1, 9, 7), irregular()])
+def test_split_vertex_mesh_topology_equals_welded(mesh, caplog):
+    V, F = mesh
+    Vs, Fs = V[F].reshape(-1, 3), np.arange(3 * len(F)).reshape(-1, 3)  # an STL file's soup
+    _, first, inv = np.unique(Vs, axis=0, return_index=True, return_inverse=True)
+    keep = np.sort(first)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    w = rank[inv.reshape(-1)]
+    welded = (Vs[keep], w[Fs])
+    f = np.sin(4 * welded[0][:, 0]) + welded[0][:, 2] + 0.1 * welded[0][:, 1] ** 2
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        S = Surface((Vs, Fs))
+    assert "welded" in caplog.text
+    np.testing.assert_array_equal(S.representative, keep[w])
+    assert S.euler_characteristic == Surface(welded).euler_characteristic
+    assert S.components == 1
+    cu, cw = o3dheat.critical_points((Vs, Fs), f[w]), o3dheat.critical_points(welded, f)
+    assert cu.counts == cw.counts and cu.euler_characteristic == cw.euler_characteristic
+    np.testing.assert_array_equal(cu.minima, keep[cw.minima])
+    np.testing.assert_array_equal(cu.saddles, keep[cw.saddles])
+    np.testing.assert_array_equal(cu.maxima, keep[cw.maxima])
+    np.testing.assert_array_equal(cu.kind, cw.kind[w])  # per input vertex: every copy labelled
+    du, dw = o3dheat.persistence((Vs, Fs), f[w]), o3dheat.persistence(welded, f)
+    np.testing.assert_array_equal(du.pairs, keep[dw.pairs])
+    np.testing.assert_array_equal(du.persistence, dw.persistence)
+    np.testing.assert_array_equal(du.essential, keep[dw.essential])
+    np.testing.assert_array_equal(o3dheat.simplify_critical_points((Vs, Fs), f[w], keep_fraction=0.3),
+                                  keep[o3dheat.simplify_critical_points(welded, f, keep_fraction=0.3)])
+    # a field that differs between copies: their mean is used
+    g = np.random.default_rng(0).standard_normal(len(Vs))
+    mean = np.bincount(w, g) / np.bincount(w)
+    assert o3dheat.critical_points((Vs, Fs), g).counts == o3dheat.critical_points(welded, mean).counts
+    # the spectrum's faces (first copies) give the welded answer too
+    spec = o3dheat.eigensolve((Vs, Fs), k=8)
+    cs = o3dheat.critical_points(Surface.from_faces(spec.n, spec.faces), f[w])
+    assert cs.counts == cw.counts
+
+
+def test_critical_points_filter_on_split_mesh():
+    V, F = torus(1.0, 0.4, 24, 12)
+    Vs, Fs = V[F].reshape(-1, 3), np.arange(3 * len(F)).reshape(-1, 3)
+    m = o3d.t.geometry.TriangleMesh()
+    m.vertex.positions = o3d.core.Tensor(Vs)
+    m.triangle.indices = o3d.core.Tensor(Fs.astype(np.int32))
+    mw = o3d.t.geometry.TriangleMesh()
+    mw.vertex.positions = o3d.core.Tensor(V)
+    mw.triangle.indices = o3d.core.Tensor(F.astype(np.int32))
+    for kw in ({}, {"delta": 0.05}):
+        a = o3dheat.filters.apply(m, "critical_points", attribute="positions", column=0, **kw)
+        b = o3dheat.filters.apply(mw, "critical_points", attribute="positions", column=0, **kw)
+        np.testing.assert_array_equal(a.vertex["positions_critical"].numpy(),
+                                      b.vertex["positions_critical"].numpy()[F].reshape(-1))
