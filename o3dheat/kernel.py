@@ -340,8 +340,11 @@ class HeatKernel:
         if grid not in GRIDS:
             raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(GRIDS)}")
         lk = float(np.max(self.rates))
-        if lk <= 0:
-            raise MeshError("all eigenvalues are zero: compute more eigenpairs to define the scales")
+        lam = self.spectrum.eigenvalues  # zero to rounding (Weyl's scale 4π/area, as eigensolve's warning)
+        if lk <= 0 or float(np.max(lam)) <= 1e-8 * 4 * np.pi / float(self.spectrum.mass.sum()):
+            raise MeshError(f"all {len(self.rates)} eigenvalues are zero (a mesh with at least as many connected "
+                            "components as eigenpairs has only constant eigenfunctions): compute more "
+                            "eigenpairs than the mesh has components to define the scales")
         if grid == "paper":
             return np.arange(1, count + 1) / count / lk
         lo, hi = 1.0 / lk, 2.0 * np.log(100.0) / self._first_nonzero(self.rates)

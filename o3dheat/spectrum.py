@@ -338,6 +338,12 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         timings = {"assemble": t_asm, **timings}
         if key:
             _cache_save(cache_dir, key, lam, X, used, s, res)
+    if lam[-1] <= 1e-8 * 4 * np.pi / float(B.sum()):  # only constants per component: say why
+        from scipy.sparse.csgraph import connected_components
+
+        c = connected_components(L, directed=False)[0]
+        log.warning("all %d eigenvalues are 0: the mesh has %d connected components, each with a constant "
+                    "eigenfunction of eigenvalue 0; ask for k > %d to get non-constant ones", k, c, c)
     n = prep.n_input
     if r < n:  # unreferenced or welded vertices: operators P D⁻¹ A D⁻¹ Pᵀ, X_in = P X (see mesh)
         L, B = prep.expand_operator(L), prep.expand_operator(B)

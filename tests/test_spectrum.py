@@ -380,3 +380,18 @@ def test_stl_round_trip_is_welded(tmp_path, caplog):
     assert (r.components, r.euler_characteristic, r.genus, r.boundary_loops) == \
         (rw.components, rw.euler_characteristic, rw.genus, rw.boundary_loops) == (1, 2, 0, 0)
     assert "welded" in str(r).splitlines()[-1]
+
+
+def test_k_not_above_the_number_of_components_is_explained(caplog):
+    V, F = icosphere(1)
+    parts = [(V + [3.0 * i, 0, 0], F + len(V) * i) for i in range(3)]
+    mesh = (np.vstack([p[0] for p in parts]), np.vstack([p[1] for p in parts]))
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        s = o3dheat.eigensolve(mesh, k=3)
+    assert "3 connected components" in caplog.text and "k > 3" in caplog.text
+    with pytest.raises(o3dheat.MeshError, match="connected"):
+        o3dheat.HeatKernel(s).scales()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        s = o3dheat.eigensolve(mesh, k=4)
+    assert "connected components" not in caplog.text and s.eigenvalues[3] > 1
