@@ -34,7 +34,7 @@ from functools import cached_property
 import numpy as np
 
 from .errors import MeshError, SolverError
-from .spectrum import Spectrum
+from .spectrum import Spectrum, _all_zero
 
 __all__ = ["HeatKernel", "heat_kernel", "VARIANTS", "GRIDS", "HKS_FORMS", "HKS_DEFAULT"]
 
@@ -340,8 +340,7 @@ class HeatKernel:
         if grid not in GRIDS:
             raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(GRIDS)}")
         lk = float(np.max(self.rates))
-        lam = self.spectrum.eigenvalues  # zero to rounding (Weyl's scale 4π/area, as eigensolve's warning)
-        if lk <= 0 or float(np.max(lam)) <= 1e-8 * 4 * np.pi / float(self.spectrum.mass.sum()):
+        if lk <= 0 or _all_zero(self.spectrum.eigenvalues, self.spectrum.mass):
             raise MeshError(f"all {len(self.rates)} eigenvalues are zero (a mesh with at least as many connected "
                             "components as eigenpairs has only constant eigenfunctions): compute more "
                             "eigenpairs than the mesh has components to define the scales")

@@ -193,10 +193,29 @@ def _zero_area(V, F):
 
 
 
+def _first_copies(P):
+    """(m,) int64: for each row of ``P`` (m, 3), the smallest index of a row with exactly the same
+    float64 values (itself when unique; -0.0 equals 0.0). Fast path for the usual case: a 64-bit
+    hash of the coordinate bits with no repeated value means no two rows are equal, and only a
+    repeat pays for the full ``np.unique`` over the rows."""
+    m = len(P)
+    idx = np.arange(m, dtype=np.int64)
+    if m < 2:
+        return idx
+    bits = (np.ascontiguousarray(P, dtype=np.float64) + 0.0).view(np.uint64)
+    h = np.sort(bits[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
+                ^ bits[:, 2])
+    if not np.any(h[1:] == h[:-1]):
+        return idx
+    # the index of the first occurrence is the smallest (np.unique sorts stably when asked for it)
+    _, first, inv = np.unique(P, axis=0, return_index=True, return_inverse=True)
+    return first[inv.reshape(-1)].astype(np.int64)
+
+
 def _weld_map(V, F):
     """``rep`` (n,) int64: for each vertex referenced by ``F``, the smallest index of a referenced
     vertex with exactly the same coordinates; ``rep[i] = i`` otherwise (unreferenced vertices are
-    never welded). Vectorised: one ``np.unique`` over the rows of the referenced coordinates."""
+    never welded). Vectorised (:func:`_first_copies`)."""
     n = len(V)
     rep = np.arange(n, dtype=np.int64)
     if n == 0 or len(F) == 0:
@@ -204,18 +223,9 @@ def _weld_map(V, F):
     used = np.zeros(n, bool)
     used[F.reshape(-1)] = True
     idx = np.flatnonzero(used)
-    # fast path (most meshes): a 64-bit hash of the coordinate bits (+ 0.0 turns -0.0 into 0.0)
-    # with no repeated value means no two rows are equal; only a repeat pays for the full unique
-    bits = (np.ascontiguousarray(V[idx], dtype=np.float64) + 0.0).view(np.uint64)
-    h = np.sort(bits[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
-                ^ bits[:, 2])
-    if not np.any(h[1:] == h[:-1]):
-        return rep
-    # rows compared as float64 values (so -0.0 == 0.0, as ``==`` says); the index of the first
-    # occurrence is the smallest (np.unique sorts stably when asked for it)
-    _, first, inv = np.unique(V[idx], axis=0, return_index=True, return_inverse=True)
-    rep[idx] = idx[first][inv.reshape(-1)]
+    rep[idx] = idx[_first_copies(V[idx])]
     return rep
+
 
 @dataclass
 class MeshReport:
@@ -359,8 +369,7 @@ def check_mesh(mesh, weld=True):
     used_in = np.zeros(n, bool)
     used_in[F.reshape(-1)] = True
     unref = int(n - used_in.sum())
-    _, first = np.unique(V, axis=0, return_index=True) if n else (None, np.zeros(0))
-    dup_verts = int(n - len(first))
+    dup_verts = int(np.sum(_first_copies(V) != np.arange(n)))
     welded, used = 0, used_in
     if weld and not nonfinite:  # (a non-finite mesh is reported, not welded)
         wmap = _weld_map(V, F)

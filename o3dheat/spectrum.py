@@ -166,10 +166,20 @@ def _b_orthonormalize(X, B):
     return sla.solve_triangular(C, X.T, lower=True).T
 
 
+def _weyl_gap(B):
+    """Weyl's law: λ_j ≈ 4π j / area, so 4π / area is the expected gap between eigenvalues."""
+    return 4 * np.pi / float(B.sum())
+
+
 def _shift(B):
-    # Weyl's law: λ_j ≈ 4π j / area; shift a hundredth of the first gap below 0.
-    area = float(B.sum())
-    return -0.01 * 4 * np.pi / area
+    # a hundredth of the first gap below 0
+    return -0.01 * _weyl_gap(B)
+
+
+def _all_zero(eigenvalues, mass):
+    """Whether every eigenvalue is 0 to rounding (below 1e-8 of Weyl's gap ``4π / 1ᵀ B 1``): the
+    spectrum then holds only the constants of the mesh's components."""
+    return float(np.max(eigenvalues)) <= 1e-8 * _weyl_gap(mass)
 
 
 def _cache_key(V, F, k, mass, method, tol=1e-8, sigma=None, seed=0, block=8):
@@ -338,7 +348,7 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         timings = {"assemble": t_asm, **timings}
         if key:
             _cache_save(cache_dir, key, lam, X, used, s, res)
-    if lam[-1] <= 1e-8 * 4 * np.pi / float(B.sum()):  # only constants per component: say why
+    if _all_zero(lam, B):  # only constants per component: say why
         from scipy.sparse.csgraph import connected_components
 
         c = connected_components(L, directed=False)[0]
