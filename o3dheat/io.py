@@ -16,6 +16,7 @@ A PLY without a face element is a point cloud.
 
 from __future__ import annotations
 
+import logging
 import os
 import tempfile
 from pathlib import Path
@@ -23,6 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import MeshError
+
+log = logging.getLogger("o3dheat")
 
 __all__ = ["read_mesh", "write_mesh", "read_geometry", "write_geometry", "atomic_write", "atomic_write_text"]
 
@@ -200,6 +203,31 @@ def atomic_write_text(path, text):
     atomic_write(path, lambda fh: fh.write(text.encode("utf-8")))
 
 
+def _triangulate(polygons, path):
+    """(m, 3) int64 triangles from a PLY face list: triangles as they are, polygons of k > 3
+    corners fanned from their first corner, ``(v0, v_i, v_{i+1})`` (as Open3D does for OFF and
+    PLY; exact for convex polygons, the usual quads), with a warning saying how many."""
+    if polygons.dtype != object:  # fixed-size lists
+        P = np.asarray(polygons).reshape(len(polygons), -1)
+        groups = {P.shape[1]: P}
+    else:
+        lengths = np.fromiter((len(p) for p in polygons), dtype=np.int64, count=len(polygons))
+        groups = {int(k): np.stack(polygons[lengths == k]) for k in np.unique(lengths)}
+    if min(groups) < 3:
+        raise MeshError(f"{path}: faces with fewer than 3 corners ({min(groups)}): not a surface")
+    tris, fanned = [], 0
+    for k, P in sorted(groups.items()):
+        P = P.astype(np.int64)
+        if k > 3:
+            fanned += len(P)
+            P = np.stack([np.repeat(P[:, :1], k - 2, axis=1), P[:, 1:-1], P[:, 2:]], axis=2).reshape(-1, 3)
+        tris.append(P)
+    if fanned:
+        log.warning("%s: %d polygons with more than 3 corners triangulated (fan from their first corner)",
+                    path, fanned)
+    return np.concatenate(tris)
+
+
 def read_mesh(path):
     """Read a mesh with all its vertex attributes.
 
@@ -283,12 +311,7 @@ def read_geometry(path):
             multi[parts[2]] = int(parts[3])
     if face is not None and len(face):
         fkey = "vertex_indices" if "vertex_indices" in face.dtype.names else face.dtype.names[0]
-        try:
-            F = np.stack(face[fkey]).astype(np.int64)
-        except ValueError as e:
-            raise MeshError(f"{path}: faces are not all triangles") from e
-        if F.ndim != 2 or F.shape[1] != 3:
-            raise MeshError(f"{path}: faces are not all triangles")
+        F = _triangulate(face[fkey], path)
         if F.min() < 0 or F.max() >= len(vert):
             raise MeshError(f"{path}: face indices out of range (corrupted file?)")
     else:

@@ -135,3 +135,45 @@ def test_no_accidental_overwrite_and_corrupt_files(tmp_path, mesh):
         read_geometry(tmp_path / "bad.npz")
     with pytest.raises(o3dheat.MeshError, match="PLY or NPZ"):
         write_mesh(tmp_path / "m.stl", mesh)
+
+
+def _polygon_ply(path, V, faces, binary=True):
+    from plyfile import PlyData, PlyElement
+
+    vert = np.array([tuple(v) for v in V], dtype=[("x", "f8"), ("y", "f8"), ("z", "f8")])
+    face = np.empty(len(faces), dtype=[("vertex_indices", object)])
+    face["vertex_indices"] = [np.asarray(f, dtype=np.int32) for f in faces]
+    PlyData([PlyElement.describe(vert, "vertex"), PlyElement.describe(face, "face")], text=not binary).write(str(path))
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_polygons_are_triangulated_on_read(tmp_path, caplog, binary):
+    """Quads and other polygons (PLY from modelling tools) are fanned into triangles, like Open3D
+    does for OFF: same surface, same spectrum as the triangulated mesh; the warning says so."""
+    import logging
+
+    nu, nv, R, r = 24, 12, 1.0, 0.4
+    u, v = np.meshgrid(np.arange(nu) * 2 * np.pi / nu, np.arange(nv) * 2 * np.pi / nv, indexing="ij")
+    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1).reshape(-1, 3)
+    idx = lambda i, j: (i % nu) * nv + (j % nv)  # noqa: E731
+    quads = [[idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)] for i in range(nu) for j in range(nv)]
+    faces = quads[:-2] + [quads[-2][:3], [quads[-2][0], quads[-2][2], quads[-2][3]]] + [quads[-1]]  # mixed
+    p = tmp_path / "quads.ply"
+    _polygon_ply(p, V, faces, binary)
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        m = read_mesh(p)
+    assert f"{len(faces) - 2} polygons with more than 3 corners triangulated" in caplog.text
+    F = m.triangle.indices.numpy()
+    assert F.shape == (2 * nu * nv, 3)
+    report = o3dheat.check_mesh(m)
+    assert report.components == 1 and report.genus == 1 and report.boundary_loops == 0
+    tri = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
+    ref = o3dheat.eigensolve((V, tri), k=12)
+    np.testing.assert_allclose(o3dheat.eigensolve(m, k=12).eigenvalues, ref.eigenvalues, rtol=1e-10, atol=1e-12)
+
+
+def test_faces_with_fewer_than_three_corners_are_refused(tmp_path):
+    p = tmp_path / "bad.ply"
+    _polygon_ply(p, np.eye(3), [[0, 1, 2], [0, 1]])
+    with pytest.raises(o3dheat.MeshError, match="fewer than 3 corners"):
+        read_mesh(p)
