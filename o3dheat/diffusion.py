@@ -10,6 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import fem
+from . import checks
 from .errors import MeshError, SolverError
 from .linalg import factorize
 from .mesh import prepare
@@ -76,10 +77,9 @@ def diffuse(mesh, f, dt, steps, scheme="explicit", mass="consistent", backend="a
         raise MeshError(f"unknown mass {mass!r}: use 'consistent' or 'identity'")
     if not (np.isscalar(dt) and np.isfinite(dt) and dt > 0):
         raise MeshError(f"dt must be a positive number, got {dt!r}")
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
-        raise MeshError(f"steps must be a non-negative integer, got {steps!r}")
+    steps = checks.count(steps, "steps", minimum=0)
     prep = prepare(mesh)
-    f = np.asarray(f, dtype=np.float64)
+    f = np.asarray(checks.values(f), dtype=np.float64)
     if f.ndim not in (1, 2) or f.shape[0] != prep.n_input:
         raise MeshError(f"f must have shape ({prep.n_input},) or ({prep.n_input}, c), got {f.shape}")
     if not np.all(np.isfinite(f)):

@@ -33,6 +33,7 @@ from functools import cached_property
 
 import numpy as np
 
+from . import checks
 from .errors import MeshError, SolverError
 from .spectrum import Spectrum, _all_zero
 
@@ -192,7 +193,7 @@ class HeatKernel:
         return np.asarray(self._weigh(self.spectrum.eigenvectors))
 
     def _field(self, f, name="f"):
-        f = np.asarray(f, dtype=np.float64)
+        f = np.asarray(checks.values(f), dtype=np.float64)
         if f.ndim not in (1, 2) or f.shape[0] != self.n:
             raise MeshError(f"{name} must have shape ({self.n},) or ({self.n}, c) (one value per vertex), "
                             f"got {f.shape}")
@@ -335,8 +336,7 @@ class HeatKernel:
         >>> K.scales(3, grid="log").round(4).tolist()           # 1/λ_k .. 2 ln(100)/λ_2
         [0.03, 0.3703, 4.5656]
         """
-        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 1 <= count <= 100_000:
-            raise MeshError(f"count must be an integer from 1 to 100000, got {count!r}")
+        count = checks.count(count, "count", maximum=100_000)
         if grid not in GRIDS:
             raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(GRIDS)}")
         lk = float(np.max(self.rates))

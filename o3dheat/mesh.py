@@ -44,6 +44,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from . import checks
 from .errors import MeshError
 
 __all__ = ["as_arrays", "check_mesh", "MeshReport", "prepare", "Prepared", "face_areas"]
@@ -76,9 +77,13 @@ def _pair(mesh):
     """(V, F) as given: from an Open3D mesh or a 2-sequence, not yet checked."""
     pair = _from_open3d(mesh)
     if pair is None:
+        arrays = getattr(mesh, "arrays", None)  # a resampling's result (o3dheat.sampling.Resampled)
+        if isinstance(arrays, tuple) and len(arrays) == 2:
+            mesh = arrays
         if not isinstance(mesh, (tuple, list)) or len(mesh) != 2:
-            raise MeshError(f"expected an Open3D TriangleMesh or a (V, F) tuple, got {type(mesh).__name__}")
-        pair = mesh
+            raise MeshError(f"expected an Open3D TriangleMesh, a (V, F) tuple or a resampling, "
+                            f"got {type(mesh).__name__}")
+        pair = (checks.values(mesh[0]), checks.values(mesh[1]))
     return pair
 
 

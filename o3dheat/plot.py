@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import checks
 from .errors import MeshError
 from .fem import _vertex_normals
 from .mesh import as_arrays
@@ -96,7 +97,7 @@ def _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title, S
 
 
 def _field_values(f, n):
-    f = np.asarray(f, dtype=np.float64)
+    f = np.asarray(checks.values(f), dtype=np.float64)
     if f.shape[0] != n:
         raise MeshError(f"the field has {f.shape[0]} values for {n} vertices")
     if not np.all(np.isfinite(f)):
@@ -311,7 +312,7 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
         h = V0[:, axis]
         f0 = h + noise * np.ptp(h) * np.random.default_rng(seed).standard_normal(len(V0))
     else:
-        f0 = _field_values(np.asarray(field, dtype=np.float64).reshape(len(V0), -1)[:, 0], len(V0))
+        f0 = _field_values(np.asarray(checks.values(field), dtype=np.float64).reshape(len(V0), -1)[:, 0], len(V0))
     prep = prepare((V0, F0))
     V, F, f = prep.V, prep.F, prep.restrict(f0)
     if len(F) > max_faces:

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import checks
 from .errors import MeshError
 from .fem import _vertex_normals
 from .mesh import _unique_rows, as_arrays
@@ -601,7 +602,7 @@ def transfer(values, source, target):
         pts = np.asarray(target, dtype=np.float64)
     else:
         pts = _surface_of(target)[0]
-    vals = np.asarray(values, dtype=np.float64)
+    vals = np.asarray(checks.values(values), dtype=np.float64)
     if vals.shape[0] != len(V):
         raise MeshError(f"values have {vals.shape[0]} rows for {len(V)} source vertices")
     scene = o3d.t.geometry.RaycastingScene()
@@ -648,6 +649,6 @@ def nearest(values, source, points):
     """
     from scipy.spatial import cKDTree
 
-    vals = np.asarray(values)
+    vals = np.asarray(checks.values(values))
     _, idx = cKDTree(np.asarray(source, dtype=np.float64)).query(np.asarray(points, dtype=np.float64))
     return vals[idx]

@@ -52,6 +52,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from . import checks
 from .errors import MeshError
 from .mesh import _degenerate, _unique_rows, _weld_map, as_arrays
 
@@ -222,7 +223,7 @@ class Surface:
 
     def field(self, f, name="f"):
         """``f`` as a checked (n,) float64 array (MeshError on a wrong shape or non-finite values)."""
-        arr = np.asarray(f)
+        arr = np.asarray(checks.values(f))
         if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
             raise MeshError(f"{name} must be numeric, got dtype {arr.dtype}")
         arr = arr.astype(np.float64)
@@ -666,9 +667,7 @@ def level_sets(mesh, f, values=None, count=None, color=(0.0, 0.0, 0.0)):
     f = S.field(f)
     vals = f[S.used]
     if values is None:
-        count = 10 if count is None else count
-        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
-            raise MeshError(f"count must be a positive integer, got {count!r}")
+        count = checks.count(10 if count is None else count, "count", maximum=10_000)
         values = np.linspace(vals.min(), vals.max(), count + 2)[1:-1]
     elif count is not None:
         raise MeshError("give values or count, not both")

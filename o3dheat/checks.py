@@ -1,0 +1,54 @@
+"""Argument checks shared by every module: what users pass as fields and counts.
+
+Fields may come as numpy arrays, Python lists or Open3D tensors (``mesh.vertex["f"]``, or any
+object with a ``numpy()`` method); :func:`values` turns them into numpy arrays before the
+module's own shape checks. Counts (scales, iterations, steps, level sets) are positive integers
+with an upper bound, so an absurd request (``count=10**9``) is refused at once instead of being
+attempted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import MeshError
+
+__all__ = ["values", "count"]
+
+
+def values(x):
+    """``x`` as something :func:`numpy.asarray` reads: an Open3D tensor (or any object with a
+    ``numpy()`` method) becomes its numpy array; anything else is returned as is.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d
+    >>> from o3dheat.checks import values
+    >>> values(o3d.core.Tensor(np.arange(3.0))).tolist(), values([1, 2])
+    ([0.0, 1.0, 2.0], [1, 2])
+    """
+    to_numpy = getattr(x, "numpy", None)
+    if callable(to_numpy) and not isinstance(x, np.ndarray):
+        try:
+            return np.asarray(to_numpy())
+        except Exception as e:  # e.g. a tensor on a device numpy cannot read
+            raise MeshError(f"cannot read the {type(x).__name__} as numbers ({e}): pass a numpy array") from e
+    return x
+
+
+def count(x, name, minimum=1, maximum=1_000_000):
+    """``x`` as an int in ``[minimum, maximum]``, or a :class:`~o3dheat.MeshError` naming ``name``.
+
+    Examples
+    --------
+    >>> from o3dheat.checks import count
+    >>> count(10, "scales")
+    10
+    >>> count(10**9, "scales", maximum=100_000)
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: scales must be an integer from 1 to 100000, got 1000000000
+    """
+    if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or not minimum <= x <= maximum:
+        raise MeshError(f"{name} must be an integer from {minimum} to {maximum}, got {x!r}")
+    return int(x)
