@@ -270,18 +270,27 @@ def _study(args):
     out = Path(args.out)
     table = robustness_study(out=out, scheduler=args.scheduler, **kw)
     ok = table[table["error"].fillna("") == ""]
+    failed = table[table["error"].fillna("") != ""]
+    written = []
     for d in sorted(ok["descriptor"].unique()):
         fig = plot_study(table, descriptor=d)
         from .io import atomic_write
 
         atomic_write(out / f"study_{d}.png", lambda fh, fig=fig: fig.savefig(fh, format="png", dpi=100))
-    failed = table[table["error"].fillna("") != ""]
-    summary = ok.groupby(["descriptor", "kernel"])["rel_l2"].median().unstack("kernel")
-    print(f"median relative L2 discrepancy to the reference sampling ({len(ok)} rows):")
-    print(summary.to_string(float_format=lambda x: f"{x:.3g}"))
-    print(f"wrote {out / 'study.csv'} and {out}/study_*.png" + (f"; {len(failed)} task(s) failed:" if len(failed) else ""))
-    for _, r in failed.iterrows():
-        print(f"  {r['mesh']} / {r['resampling']}: {r['error']}")
+        written.append(f"study_{d}.png")
+    if len(ok):
+        summary = ok.groupby(["descriptor", "kernel"])["rel_l2"].median().unstack("kernel")
+        print(f"median relative L2 discrepancy to the reference sampling ({len(ok)} rows):")
+        print(summary.to_string(float_format=lambda x: f"{x:.3g}"))
+    print(f"wrote {out / 'study.csv'}" + (f" and {len(written)} plots ({out}/study_*.png)" if written else
+                                          " (no plot: no task succeeded)"))
+    if len(failed):
+        print(f"{len(failed)} of {len(failed) + ok.groupby(['mesh', 'resampling']).ngroups} task(s) failed "
+              "(they are retried when the same command runs again):", file=sys.stderr)
+        for _, r in failed.iterrows():
+            print(f"  {r['mesh']} / {r['resampling']}: {r['error']}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def _quiet_dask(record):
@@ -330,7 +339,7 @@ def main(argv=None):
         elif args.command == "figure":
             _figure(args)
         elif args.command == "study":
-            _study(args)
+            return _study(args)
         else:
             p.print_help()
             return 1

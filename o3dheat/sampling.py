@@ -214,7 +214,8 @@ def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None):
     iterations : int
     edge_factor : float, optional
         Instead of ``target_edge_length``: a multiple of the mesh's mean edge length (scale-free,
-        for studies over meshes of different sizes).
+        for studies over meshes of different sizes). With neither given: ``edge_factor=1`` (a
+        uniform sampling at the mean edge length).
 
     Returns
     -------
@@ -230,8 +231,10 @@ def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None):
     True
     """
     V, F = as_arrays(mesh)
-    if (target_edge_length is None) == (edge_factor is None):
-        raise MeshError("give target_edge_length or edge_factor (one of them)")
+    if target_edge_length is not None and edge_factor is not None:
+        raise MeshError("give target_edge_length or edge_factor, not both")
+    if target_edge_length is None and edge_factor is None:
+        edge_factor = 1.0
     if edge_factor is not None:
         if not (np.isfinite(edge_factor) and edge_factor > 0):
             raise MeshError(f"edge_factor must be > 0, got {edge_factor}")

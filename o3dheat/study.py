@@ -210,23 +210,47 @@ def _read_rows(path):
 
 
 def _normalise_resamplings(resamplings):
+    """[(name, spec)] from a dict name -> spec, a list of specs with a "name", or kind names
+    (``["decimate", "remesh"]``: each kind with the defaults of its function in
+    :mod:`o3dheat.sampling`, named after it)."""
+    from .sampling import KINDS
+
+    if isinstance(resamplings, str):
+        resamplings = [resamplings]
     if isinstance(resamplings, dict):
         items = []
         for name, spec in resamplings.items():
-            if isinstance(spec, (tuple, list)) and len(spec) == 2:
+            if isinstance(spec, str):
+                spec = {"kind": spec}
+            elif isinstance(spec, (tuple, list)) and len(spec) == 2:
                 spec = {"kind": spec[0], **spec[1]}
-            items.append((name, dict(spec)))
+            if not isinstance(spec, dict):
+                raise MeshError(f"resampling {name!r}: expected a kind name or a table with a kind, got {spec!r}")
+            items.append((str(name), dict(spec)))
     else:
-        items = [(s.get("name") or s["kind"], dict(s)) for s in resamplings]
-    from .sampling import KINDS
-
+        items = []
+        for s in resamplings:
+            if isinstance(s, str):
+                s = {"kind": s}
+            if not isinstance(s, dict):
+                raise MeshError(f"a resampling is a kind name or a table with a kind, got {s!r}")
+            items.append((str(s.get("name") or s.get("kind")), dict(s)))
     for name, spec in items:
         if spec.get("kind") not in KINDS:
             raise MeshError(f"resampling {name!r}: kind must be one of {', '.join(KINDS)}, got {spec.get('kind')!r}")
-    names = [n for n, _ in items]
-    if len(set(names)) != len(names):
-        raise MeshError(f"resampling names must be unique: {names}")
+    _unique_slugs([n for n, _ in items], "resampling")
     return items
+
+
+def _unique_slugs(names, what):
+    """Refuse names that are equal, or equal once made file names (their task files would mix)."""
+    seen = {}
+    for n in names:
+        s = _slug(n)
+        if s in seen:
+            raise MeshError(f"{what} names {seen[s]!r} and {n!r} are the same once made file names ({s!r}): "
+                            "rename one")
+        seen[s] = n
 
 
 def _client(scheduler):
@@ -287,8 +311,11 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
     meshes : dict
         Name -> mesh (Open3D mesh or (V, F)); each is the reference of its resamplings.
     resamplings : dict or list
-        Name -> ``{"kind": "decimate", "reduction": 0.7}`` (or ``("decimate", {...})``), or a list of
-        such dicts with a "name"; kinds of :data:`o3dheat.sampling.KINDS`.
+        Name -> ``{"kind": "decimate", "reduction": 0.7}`` (or ``("decimate", {...})``, or a kind
+        name), or a list of such dicts with a "name", or kind names (``["decimate", "remesh"]``:
+        the defaults of each function of :mod:`o3dheat.sampling`, e.g. ``decimate(reduction=0.7)``,
+        ``remesh(edge_factor=1)``); kinds of :data:`o3dheat.sampling.KINDS`. Names must stay
+        distinct once made file names.
     kernels : sequence of str
         From :data:`KERNELS`.
     descriptors : sequence of str
@@ -335,6 +362,7 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
         raise MeshError("give at least one kernel and one descriptor")
     if not isinstance(meshes, dict) or not meshes:
         raise MeshError("meshes must be a non-empty dict name -> mesh")
+    _unique_slugs([str(m) for m in meshes], "mesh")
     items = _normalise_resamplings(resamplings)
     if not (isinstance(scales, (int, np.integer)) and scales >= 1 and isinstance(k, (int, np.integer)) and k >= 2):
         raise MeshError("scales must be >= 1 and k >= 2 (integers)")

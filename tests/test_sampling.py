@@ -104,8 +104,9 @@ def test_remesh_anisotropic_jitter_subdivide():
     r2 = remesh((V, F), edge_factor=0.8)
     e2 = np.linalg.norm(r2.V[r2.F[:, 0]] - r2.V[r2.F[:, 1]], axis=1)
     assert abs(np.median(e2) / (0.8 * h) - 1) < 0.3 and r2.params["edge_factor"] == 0.8
-    with pytest.raises(o3dheat.MeshError, match="one of them"):
+    with pytest.raises(o3dheat.MeshError, match="not both"):
         remesh((V, F), 0.1, edge_factor=1.0)
+    np.testing.assert_array_equal(remesh((V, F)).V, remesh((V, F), edge_factor=1.0).V)  # the default
     with pytest.raises(o3dheat.MeshError):
         remesh((V, F), -1)
     a = anisotropic((V, F), coarse=6.0, fine=0.5)

@@ -137,3 +137,39 @@ def test_study_kernels_keep_constants():
     shifted, _ = _descriptors(V + [5.0, 0, 0], F, KERNELS, ["smooth_height"], 20, times, axis=0)
     for kern in KERNELS:  # the height along x shifted by 5: every kernel's Φ_t shifts by exactly 5 (K_t 1 = 1)
         np.testing.assert_allclose(shifted[kern, "smooth_height"], desc[kern, "smooth_height"] + 5.0, atol=1e-9)
+
+
+def test_kind_names_use_documented_defaults_and_colliding_names_are_refused():
+    t = robustness_study({"s": icosphere(2)}, ["jitter", "remesh"], kernels=["weighted"],
+                         descriptors=["smooth_height"], scheduler="sequential", progress=False, **SMALL)
+    assert set(t["resampling"]) == {"jitter", "remesh"} and (t["error"] == "").all()
+    t2 = robustness_study({"s": icosphere(2)}, {"r": "remesh"}, kernels=["weighted"],
+                          descriptors=["smooth_height"], scheduler="sequential", progress=False, **SMALL)
+    np.testing.assert_array_equal(t2["rel_l2"], t[t["resampling"] == "remesh"]["rel_l2"])
+    with pytest.raises(o3dheat.MeshError, match="same once made file names"):
+        robustness_study({"s": icosphere(1)}, {"a b": "jitter", "a_b": "jitter"}, scheduler="sequential")
+    with pytest.raises(o3dheat.MeshError, match="same once made file names"):
+        robustness_study({"m/1": icosphere(1), "m 1": icosphere(1)}, ["jitter"], scheduler="sequential")
+    with pytest.raises(o3dheat.MeshError, match="kind name or a table"):
+        robustness_study({"s": icosphere(1)}, [3], scheduler="sequential")
+
+
+def test_cli_study_every_task_failed_exits_1_without_plots(tmp_path, capsys):
+    from o3dheat.cli import main
+
+    import open3d as o3d
+
+    V, F = icosphere(2)
+    m = o3d.t.geometry.TriangleMesh()
+    m.vertex.positions = o3d.core.Tensor(V)
+    m.triangle.indices = o3d.core.Tensor(F)
+    o3dheat.io.write_mesh(tmp_path / "s.ply", m)
+    cfg = tmp_path / "study.toml"
+    cfg.write_text('k = 10\nscales = 2\nkernels = ["weighted"]\ndescriptors = ["smooth_height"]\n'
+                   '[meshes]\ns = "s.ply"\n[[resampling]]\nname = "bad"\nkind = "remesh"\n'
+                   'target_edge_length = 1000.0\n')
+    out = tmp_path / "out"
+    assert main(["study", str(cfg), "--out", str(out), "--scheduler", "sequential"]) == 1
+    captured = capsys.readouterr()
+    assert "no plot" in captured.out and "1 of 1 task(s) failed" in captured.err
+    assert "target_edge_length" in captured.err and not list(out.glob("*.png"))
