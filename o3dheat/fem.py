@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshError
-from .mesh import _edges, face_areas
+from .mesh import _edges, face_areas, unit_scale
 
 __all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "operators", "mean_curvature", "gaussian_curvature"]
 
@@ -31,6 +31,9 @@ def _corner_geometry(V, F):
     """Per-face double areas and the cotangent at each corner (m, 3)."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
+    s = unit_scale(V)  # computed at unit scale (exact power of two), scaled back below
+    if s != 1.0:
+        V = V / s
     p = [V[F[:, i]] for i in range(3)]
     # edge opposite corner i: e_i = p[i+2] - p[i+1]
     e = [p[2] - p[1], p[0] - p[2], p[1] - p[0]]
@@ -41,6 +44,8 @@ def _corner_geometry(V, F):
     # cot at corner i = <a, b> / |a x b|, a, b the edges leaving corner i = -e_{i+2}, e_{i+1}
     cot = np.stack([-np.einsum("ij,ij->i", e[(i + 2) % 3], e[(i + 1) % 3]) / dbl for i in range(3)], axis=1)
     sq = np.stack([np.einsum("ij,ij->i", e[i], e[i]) for i in range(3)], axis=1)
+    if s != 1.0:  # cotangents are scale free; areas and squared lengths scale with s²
+        dbl, sq = dbl * (s * s), sq * (s * s)
     return dbl, cot, sq
 
 
@@ -210,6 +215,7 @@ def mass_matrix(V, F, kind="consistent"):
 
 def _vertex_normals(V, F):
     """Area-weighted vertex normals (unit length where defined)."""
+    V = V / unit_scale(V)  # exact; unit normals do not depend on the scale
     n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])  # 2 |t| times the face normal
     N = np.zeros_like(V)
     for i in range(3):

@@ -223,13 +223,38 @@ class HeatKernel:
         (k,) or (k, T) float64 ndarray
         """
         t_arr = self._times(t)
-        return np.exp(-0.5 * np.multiply.outer(self.rates, t_arr))
+        with np.errstate(over="ignore"):
+            D = np.exp(-0.5 * np.multiply.outer(self.rates, t_arr))
+        if not np.all(np.isfinite(D)):
+            raise SolverError(f"the filter factors exp(-φ(λ) t / 2) overflow at t={t}: the transfer function is "
+                              "too negative for this time (a negative φ amplifies)")
+        return D
+
+    @staticmethod
+    def _unit(f):
+        """``(f / p, p)`` with ``p`` a power of two bringing ``max |f|`` near 1 when it lies outside
+        ``[2^-500, 2^500]`` (exact: no rounding; ``p = 1`` for ordinary fields), so that sums of
+        products of huge values do not overflow."""
+        m = float(np.max(np.abs(f))) if f.size else 0.0
+        if m == 0 or 2.0**-500 <= m <= 2.0**500:
+            return f, 1.0
+        p = float(2.0 ** np.round(np.log2(m)))
+        return f / p, p
+
+    @staticmethod
+    def _back(out, p, what):
+        """``out * p``, refusing a result that does not fit in float64."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            out = out * p if p != 1.0 else out
+        if not np.all(np.isfinite(out)):
+            raise SolverError(f"{what} exceeds the float64 range (|values| > 1.8e308): rescale the field")
+        return out
 
     # ----------------------------------------------------------------------------------- the map
     def coefficients(self, f):
         """Spectral coefficients ``Xᵀ W f`` (for "weighted": ``⟨f, x_i⟩_B``), shape (k,) or (k, c)."""
-        f = self._field(f)
-        return self.spectrum.eigenvectors.T @ self._weigh(f)
+        f, p = self._unit(self._field(f))
+        return self._back(self.spectrum.eigenvectors.T @ self._weigh(f), p, "the spectral coefficients")
 
     def smooth(self, f, t):
         """Feature map ``Φ_t f = X D_t Xᵀ W f`` (eq. (6), truncated to k eigenpairs).
@@ -255,17 +280,19 @@ class HeatKernel:
         >>> bool(np.allclose(g, 1.0))
         True
         """
+        f, p = self._unit(self._field(f))
         c = self.coefficients(f)
         D = self.filter_factors(t)
         X = self.spectrum.eigenvectors
         if D.ndim == 1:
-            return X @ (D[:, None] * c if c.ndim == 2 else D * c)
-        if c.ndim == 1:
-            return X @ (D * c[:, None])
-        k, ncol = c.shape
-        T = D.shape[1]
-        out = X @ (c[:, :, None] * D[:, None, :]).reshape(k, ncol * T)
-        return out.reshape(self.n, ncol, T)
+            out = X @ (D[:, None] * c if c.ndim == 2 else D * c)
+        elif c.ndim == 1:
+            out = X @ (D * c[:, None])
+        else:
+            k, ncol = c.shape
+            T = D.shape[1]
+            out = (X @ (c[:, :, None] * D[:, None, :]).reshape(k, ncol * T)).reshape(self.n, ncol, T)
+        return self._back(out, p, "Φ_t f")
 
     __call__ = smooth
 
@@ -366,6 +393,7 @@ class HeatKernel:
         f = self._field(f)
         if f.ndim != 1:
             raise MeshError("error() takes one scalar field (n,)")
+        f = self._unit(f)[0]  # ε∞ is scale free
         F = self.smooth(f, t)
         nf = np.abs(f).max()
         d = np.abs(F - (f[:, None] if F.ndim == 2 else f)).max(axis=0)
@@ -429,9 +457,11 @@ class HeatKernel:
         if expo > np.log(1e15):
             raise SolverError(f"the inverse at t={float(t):g} amplifies by exp({expo:.3g}) > 1e15: use a "
                               "smaller t or fewer eigenpairs")
+        f, p = self._unit(f)
         g = self.coefficients(f)  # coordinates of P f
         Dinv = np.exp(0.5 * self.rates * float(t))
-        return self.spectrum.eigenvectors @ (Dinv[:, None] * g if g.ndim == 2 else Dinv * g)
+        return self._back(self.spectrum.eigenvectors @ (Dinv[:, None] * g if g.ndim == 2 else Dinv * g), p,
+                          "the inverse")
 
     # ------------------------------------------------------------------ truncation
     def truncation_bound(self, f, t):

@@ -141,7 +141,35 @@ def as_arrays(mesh):
     if F.min() < 0 or F.max() >= len(V):
         raise MeshError(f"face indices out of range: they must lie in [0, {len(V) - 1}], "
                         f"found [{int(F.min())}, {int(F.max())}]")
+    extent = float(np.max(np.ptp(V, axis=0)))
+    if extent > EXTENT_RANGE[1] or 0 < extent < EXTENT_RANGE[0]:
+        raise MeshError(f"the mesh spans {extent:.3g} units: areas and eigenvalues (units², 1/units²) are "
+                        f"not representable in float64 beyond [{EXTENT_RANGE[0]:g}, {EXTENT_RANGE[1]:g}]; "
+                        "rescale it (results are scale covariant: K_t(αM) = K_{t/α²}(M))")
     return V, F
+
+
+#: extents (largest side of the bounding box) o3dheat accepts; within it every computation is exact
+#: up to rounding, geometry being evaluated at a power-of-two scale (:func:`unit_scale`)
+EXTENT_RANGE = (1e-100, 1e100)
+
+
+def unit_scale(V):
+    """A power of two ``s`` with ``V / s`` of extent near 1, or 1 when the extent is within
+    ``[2^-60, 2^60]``: squares of coordinates then neither overflow nor underflow, and dividing
+    by ``s`` is exact (no rounding), so results at ordinary scales are unchanged bit for bit.
+
+    Examples
+    --------
+    >>> import numpy as np, o3dheat.mesh as m
+    >>> m.unit_scale(np.eye(3)), m.unit_scale(1e90 * np.eye(3)) == 2.0 ** 299
+    (1.0, True)
+    """
+    V = np.asarray(V)
+    extent = float(np.max(np.ptp(V, axis=0))) if len(V) else 0.0
+    if not np.isfinite(extent) or extent == 0 or 2.0**-60 <= extent <= 2.0**60:
+        return 1.0
+    return float(2.0 ** np.round(np.log2(extent)))
 
 
 def face_areas(V, F):
@@ -163,8 +191,11 @@ def face_areas(V, F):
     >>> m.face_areas(np.eye(3), np.array([[0, 1, 2]])).round(4)
     array([0.866])
     """
+    s = unit_scale(V)
+    V = V / s if s != 1.0 else V
     v0, v1, v2 = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    return 0.5 * np.linalg.norm(np.cross(v1 - v0, v2 - v0), axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(v1 - v0, v2 - v0), axis=1)
+    return area * (s * s) if s != 1.0 else area
 
 
 def _unique_rows(A, return_index=False, return_counts=False):
@@ -192,6 +223,7 @@ def _edges(F):
 
 
 def _zero_area(V, F):
+    V = V / unit_scale(V)  # relative test: at unit scale (exact, a power of two)
     area = face_areas(V, F)
     scale = np.max(np.ptp(V, axis=0)) if len(V) else 1.0
     return area <= 1e-14 * max(scale, np.finfo(float).tiny) ** 2

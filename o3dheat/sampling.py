@@ -608,6 +608,14 @@ def transfer(values, source, target):
     vals = np.asarray(checks.values(values), dtype=np.float64)
     if vals.shape[0] != len(V):
         raise MeshError(f"values have {vals.shape[0]} rows for {len(V)} source vertices")
+    if not np.all(np.isfinite(vals)):
+        raise MeshError(f"values contain {int(np.sum(~np.isfinite(vals)))} NaN or infinite entries")
+    # Open3D's closest-point scene is float32: centre and scale both point sets on the source's
+    # bounding box first (georeferenced scans sit 1e6 units from the origin, where float32 steps
+    # are 0.5 units); the barycentric coordinates are then computed in float64
+    centre = (V.min(axis=0) + V.max(axis=0)) / 2
+    size = float(np.max(np.ptp(V, axis=0))) or 1.0
+    V, pts = (V - centre) / size, (np.asarray(pts, dtype=np.float64) - centre) / size
     scene = o3d.t.geometry.RaycastingScene()
     tm = o3d.t.geometry.TriangleMesh()
     tm.vertex.positions = o3d.core.Tensor(V.astype(np.float32))

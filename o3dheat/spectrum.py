@@ -333,7 +333,14 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         raise MeshError(f"sigma must be a negative number (L - sigma B must be positive definite), got {sigma}")
     cache_dir = None if cache in (None, False) else (default_cache_dir() if cache is True else Path(cache))
     key = _cache_key(prep.V, prep.F, k, mass, method, tol, sigma, seed, block) if cache_dir is not None else None
-    L, B, areas = fem.operators(V, F, mass)
+    # the area-weighted problems are solved at a power-of-two scale near 1 (exact: λ = λ'/u²,
+    # X = X'/u, B = u² B'): iterative solvers lose digits when the units are far from the mesh's
+    # size (micrometres, georeferenced metres); ordinary meshes (extent 1e-6..1e6) have u = 1
+    extent = float(np.max(np.ptp(V, axis=0)))
+    u = 1.0 if mass == "identity" or 2.0**-20 <= extent <= 2.0**20 else float(2.0 ** np.round(np.log2(extent)))
+    L, B, areas = fem.operators(V / u if u != 1.0 else V, F, mass)
+    if sigma is not None:
+        sigma = sigma * u * u
     t_asm = time.perf_counter() - t0
     cached = _cache_load(cache_dir, key) if key else None
     if cached is not None and not _cache_valid(cached, L, B, k, tol):
@@ -348,6 +355,8 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         timings = {"assemble": t_asm, **timings}
         if key:
             _cache_save(cache_dir, key, lam, X, used, s, res)
+    if u != 1.0:
+        lam, X, s, B, areas = lam / (u * u), X / u, s / (u * u), B * (u * u), areas * (u * u)
     if _all_zero(lam, B):  # only constants per component: say why
         from scipy.sparse.csgraph import connected_components
 

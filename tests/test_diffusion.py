@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import o3dheat
-from conftest import icosphere
+from conftest import icosphere, irregular
 
 
 @pytest.fixture(scope="module")
@@ -77,3 +77,17 @@ def test_bad_field(small):
     f[0] = np.inf
     with pytest.raises(o3dheat.MeshError, match="NaN"):
         o3dheat.diffuse((V, F), f, dt=0.1, steps=1)
+
+
+@pytest.mark.parametrize("alpha", [1e-90, 1e90])
+@pytest.mark.parametrize("scheme", ["explicit", "implicit"])
+def test_extreme_scales_are_covariant(alpha, scheme):
+    import warnings
+
+    V, F = irregular()
+    f = V[:, 0]
+    ref = o3dheat.diffuse((V, F), f, 1e-5, 5, scheme=scheme)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow on the way
+        g = o3dheat.diffuse((alpha * V, F), f, 1e-5 * alpha**2, 5, scheme=scheme)
+    np.testing.assert_allclose(g, ref, atol=1e-12)

@@ -347,3 +347,18 @@ def test_bad_input(K, spec):
         K.hks(0.1, form="sun")
     with pytest.raises(o3dheat.MeshError, match="count"):
         K.scales(0)
+
+
+def test_finite_input_never_gives_silent_inf(K, spec):
+    f = rng_field(K.n, 5)
+    big = f * (1e308 / np.abs(f).max())
+    for t in (0.0, 0.01):
+        np.testing.assert_allclose(K.smooth(big, t) / 1e308, K.smooth(big / 1e308, t), rtol=1e-12, atol=1e-14)
+    assert np.all(np.isfinite(K.smooth(big, [0.01, 0.1])))
+    np.testing.assert_allclose(K.error(big, 0.01), K.error(f, 0.01), rtol=1e-12)
+    tiny = f * 1e-300
+    np.testing.assert_allclose(K.smooth(tiny, 0.01) / 1e-300, K.smooth(f, 0.01), rtol=1e-10)
+    with pytest.raises(o3dheat.SolverError, match="overflow"):
+        HeatKernel(spec, transfer=lambda lam: -1e300 * lam).smooth(f, 1.0)
+    with pytest.raises(o3dheat.SolverError, match="float64 range"):
+        K.inverse(big, 2 * np.log(1e10) / K.rates[-1])  # amplifies the top mode by 1e10

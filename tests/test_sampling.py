@@ -40,6 +40,21 @@ def test_transfer_is_exact_for_linear_functions():
     assert nearest(f, V, V[:7] + 1e-9).tolist() == f[:7].tolist()
 
 
+def test_transfer_far_from_the_origin_and_bad_values():
+    """A georeferenced scan (5e6 m from the origin) transfers as well as at the origin; NaN values
+    are refused, not propagated."""
+    V, F = icosphere(3)
+    f = 2 * V[:, 0] - V[:, 1] + 0.5
+    P = icosphere(2)[0] * 1.0
+    g = transfer(f, (V, F), P)
+    offset = np.array([5e6, -3e6, 1e5])
+    np.testing.assert_allclose(transfer(f, (V + offset, F), P + offset), g, atol=1e-7)
+    bad = f.copy()
+    bad[3] = np.nan
+    with pytest.raises(o3dheat.MeshError, match="NaN"):
+        transfer(bad, (V, F), P)
+
+
 @pytest.mark.parametrize("method", ["poisson", "ball_pivoting"])
 def test_reconstruct_a_sphere(method):
     P = np.random.default_rng(0).standard_normal((4000, 3))

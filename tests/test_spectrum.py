@@ -395,3 +395,25 @@ def test_k_not_above_the_number_of_components_is_explained(caplog):
     with caplog.at_level(logging.WARNING, logger="o3dheat"):
         s = o3dheat.eigensolve(mesh, k=4)
     assert "connected components" not in caplog.text and s.eigenvalues[3] > 1
+
+
+@pytest.mark.parametrize("alpha", [1e-90, 1e-20, 1e20, 1e90])
+@pytest.mark.parametrize("method", ["arpack", "lanczos", "dense"])
+def test_extreme_coordinate_scales_are_exactly_covariant(irregular_mesh, alpha, method):
+    """Micrometres or astronomical units: solved at a power-of-two scale, λ(αM) = λ(M)/α² and
+    Φ_{α² t}(αM) = Φ_t(M) to rounding; beyond 1e±100 the mesh is refused (areas overflow)."""
+    V, F = irregular_mesh
+    ref = o3dheat.eigensolve((V, F), k=8, method=method)
+    s = o3dheat.eigensolve((alpha * V, F), k=8, method=method)
+    np.testing.assert_allclose(s.eigenvalues[1:] * alpha**2, ref.eigenvalues[1:], rtol=1e-8)
+    np.testing.assert_allclose(s.eigenvectors.T @ s.mass @ s.eigenvectors, np.eye(8), atol=1e-10)
+    f = V[:, 0]
+    np.testing.assert_allclose(o3dheat.HeatKernel(s).smooth(f, 0.1 * alpha**2), o3dheat.HeatKernel(ref).smooth(f, 0.1),
+                               atol=1e-7)
+
+
+def test_beyond_the_representable_scales_the_mesh_is_refused(irregular_mesh):
+    V, F = irregular_mesh
+    for alpha in (1e-150, 1e150):
+        with pytest.raises(o3dheat.MeshError, match="rescale it"):
+            o3dheat.eigensolve((alpha * V, F), k=4)
