@@ -354,7 +354,8 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
 
     from .mesh import prepare
 
-    kernels, descriptors = list(kernels), list(descriptors)
+    kernels = [kernels] if isinstance(kernels, str) else list(kernels)  # one name is a list of one
+    descriptors = [descriptors] if isinstance(descriptors, str) else list(descriptors)
     bad = [x for x in kernels if x not in KERNELS] + [x for x in descriptors if x not in DESCRIPTORS]
     if bad:
         raise MeshError(f"unknown kernels/descriptors {bad}: kernels are {KERNELS}, descriptors {DESCRIPTORS}")
@@ -496,16 +497,31 @@ def load_config(path):
 
     path = Path(path)
     data = read_toml(path)
-    meshes = {}
-    for name, src in (data.get("meshes") or {}).items():
-        meshes[name] = _builtin(src) if str(src).startswith("builtin:") else read_mesh(path.parent / src)
-    res = data.get("resampling") or []
-    if not meshes or not res:
-        raise MeshError(f"{path}: needs a [meshes] table and at least one [[resampling]]")
     allowed = {"k", "scales", "grid", "kernels", "descriptors", "meshes", "resampling"}
     unknown = set(data) - allowed
     if unknown:
         raise MeshError(f"{path}: unknown settings {sorted(unknown)}; allowed: {sorted(allowed)}")
+    expected = {"k": (int, "an integer"), "scales": (int, "an integer"), "grid": (str, "a string"),
+                "kernels": (list, "a list of names"), "descriptors": (list, "a list of names"),
+                "meshes": (dict, "a [meshes] table of name = \"file or builtin:NAME\""),
+                "resampling": (list, "[[resampling]] tables")}
+    for key, (kind, text) in expected.items():
+        if key in data and (not isinstance(data[key], kind) or isinstance(data[key], bool)):
+            raise MeshError(f"{path}: {key} must be {text}, got {data[key]!r}")
+    for key in ("kernels", "descriptors"):
+        if not all(isinstance(x, str) for x in data.get(key, [])):
+            raise MeshError(f"{path}: {key} must be a list of names, got {data[key]!r}")
+    bad = {name: src for name, src in (data.get("meshes") or {}).items() if not isinstance(src, str)}
+    if bad:
+        raise MeshError(f"{path}: each mesh is a file path or \"builtin:NAME\" (a string), got {bad}")
+    if not all(isinstance(r, dict) for r in data.get("resampling", [])):
+        raise MeshError(f"{path}: each [[resampling]] is a table with a kind")
+    meshes = {}
+    for name, src in (data.get("meshes") or {}).items():
+        meshes[name] = _builtin(src) if src.startswith("builtin:") else read_mesh(path.parent / src)
+    res = data.get("resampling") or []
+    if not meshes or not res:
+        raise MeshError(f"{path}: needs a [meshes] table and at least one [[resampling]]")
     kw = {key: data[key] for key in ("k", "scales", "grid", "kernels", "descriptors") if key in data}
     return {"meshes": meshes, "resamplings": res, **kw}
 

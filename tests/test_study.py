@@ -173,3 +173,28 @@ def test_cli_study_every_task_failed_exits_1_without_plots(tmp_path, capsys):
     captured = capsys.readouterr()
     assert "no plot" in captured.out and "1 of 1 task(s) failed" in captured.err
     assert "target_edge_length" in captured.err and not list(out.glob("*.png"))
+
+
+@pytest.mark.parametrize("text, message", [
+    ('k = "ten"\n[meshes]\nb = "builtin:torus"\n[[resampling]]\nkind = "jitter"\n', "k must be an integer"),
+    ('[meshes]\nb = 3\n[[resampling]]\nkind = "jitter"\n', "each mesh is a file path"),
+    ('kernels = "weighted"\n[meshes]\nb = "builtin:torus"\n[[resampling]]\nkind = "jitter"\n',
+     "kernels must be a list of names"),
+    ('resampling = 5\n[meshes]\nb = "builtin:torus"\n', "resampling must be [[resampling]] tables"),
+    ('descriptors = [1]\n[meshes]\nb = "builtin:torus"\n[[resampling]]\nkind = "jitter"\n', "list of names"),
+    ('resampling = [3]\n[meshes]\nb = "builtin:torus"\n', "each [[resampling]] is a table"),
+])
+def test_cli_study_config_mistakes_are_one_line(tmp_path, capsys, text, message):
+    from o3dheat.cli import main
+
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(text)
+    assert main(["study", str(cfg), "--out", str(tmp_path / "o"), "--scheduler", "sequential"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_one_kernel_name_is_a_list_of_one():
+    t = robustness_study({"s": icosphere(1)}, ["jitter"], kernels="weighted", descriptors="smooth_height",
+                         scheduler="sequential", progress=False, k=8, scales=2)
+    assert set(t["kernel"]) == {"weighted"} and set(t["descriptor"]) == {"smooth_height"}
