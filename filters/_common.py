@@ -149,23 +149,22 @@ class Site:
         return shared_spectrum(V, F, k=k, mass=mass, cache=cache)
 
 
-_ROBUST = {}
-
-
 def _robust_spectrum(P, k):
     try:
         import robust_laplacian
     except ImportError:
         raise MeshError("operators='robust' needs robust-laplacian: pip install robust-laplacian "
                         "(or use operators='reconstruct')") from None
-    from o3dheat.spectrum import eigensolve_operators
+    import hashlib
 
-    key = (P.tobytes().__hash__(), k)
-    if key not in _ROBUST:
+    from o3dheat.spectrum import eigensolve_operators, memoized
+
+    def compute():
         L, M = robust_laplacian.point_cloud_laplacian(P)
-        _ROBUST.clear()
-        _ROBUST[key] = eigensolve_operators(L, M, k=min(k, len(P) - 2))
-    return _ROBUST[key]
+        return eigensolve_operators(L, M, k=min(k, len(P) - 2))
+
+    key = ("robust", hashlib.sha256(np.ascontiguousarray(P, dtype=np.float64).tobytes()).hexdigest(), k)
+    return memoized(key, compute)
 
 
 def kernel_of(site, k, variant="weighted", normalize=None):

@@ -90,7 +90,7 @@ def _parser():
     a.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
     a.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
     a.add_argument("--cache", nargs="?", const=True, metavar="DIR",
-                   help="keep spectra on disk (default folder: $O3DHEAT_CACHE or ~/.cache/o3dheat)")
+                   help="keep spectra on disk (default folder: $O3DHEAT_CACHE or the user cache folder, ~/.cache/o3dheat on Linux)")
     s = _sub(sub, "spectrum", "compute the smallest eigenpairs of a mesh and save them")
     s.add_argument("input", help="mesh file")
     s.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")

@@ -32,7 +32,6 @@ import difflib
 import re
 import sys
 import typing
-from collections import OrderedDict
 from importlib import metadata
 from pathlib import Path
 
@@ -428,54 +427,28 @@ def _to_toml(data):
 
 
 # ------------------------------------------------------------------------ the shared spectrum
-_SPECTRA: OrderedDict = OrderedDict()
-_MAX_SPECTRA = 8
-_DISK_CACHE = None
-
-
 def set_disk_cache(folder):
     """Also keep the filters' spectra on disk: a folder, True (``o3dheat.spectrum.default_cache_dir()``)
-    or None (memory only, the default). Repeated runs on the same mesh then skip the eigensolve.
+    or None (memory only, the default): :func:`o3dheat.spectrum.set_cache`.
 
     Examples
     --------
     >>> import tempfile, o3dheat.filters as flt
     >>> flt.set_disk_cache(tempfile.mkdtemp()); flt.set_disk_cache(None)
     """
-    global _DISK_CACHE
-    _DISK_CACHE = folder
+    from .spectrum import set_cache
+
+    set_cache(folder)
 
 
 def shared_spectrum(V, F, k=100, mass="consistent", cache=None):
-    """The spectrum of ``(V, F)``, computed once per geometry and settings and then shared.
-
-    Filters ask for their spectrum here; a chain that smooths, computes HKS and approximates on
-    one mesh solves the eigenproblem once. The in-memory cache keeps the last 8 spectra; ``cache``
-    (a folder, or True for the default; default: what :func:`set_disk_cache` set) adds
-    :func:`o3dheat.eigensolve`'s on-disk cache.
-
-    Parameters
-    ----------
-    V : (n, 3) float64 ndarray
-    F : (m, 3) int ndarray
-    k : int
-        Eigenpairs (capped at the number of vertices).
-    mass : str
-    cache : None, bool, str or Path
+    """The spectrum the filters share: :func:`o3dheat.spectrum.shared_eigensolve` (one eigensolve
+    per geometry and settings for a whole chain; the spectrum module holds the one cache).
 
     Returns
     -------
     Spectrum
     """
-    from .spectrum import _cache_key, eigensolve
+    from .spectrum import shared_eigensolve
 
-    k = min(int(k), len(V))
-    key = _cache_key(np.asarray(V), np.asarray(F), k, mass, "auto")
-    if key in _SPECTRA:
-        _SPECTRA.move_to_end(key)
-        return _SPECTRA[key]
-    spec = eigensolve((V, F), k=k, mass=mass, cache=_DISK_CACHE if cache is None else cache)
-    _SPECTRA[key] = spec
-    while len(_SPECTRA) > _MAX_SPECTRA:
-        _SPECTRA.popitem(last=False)
-    return spec
+    return shared_eigensolve(V, F, k=k, mass=mass, cache=cache)

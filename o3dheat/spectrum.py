@@ -16,8 +16,10 @@ from __future__ import annotations
 import hashlib
 import logging
 import os
+import sys
 import tempfile
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,7 +35,8 @@ from .lanczos import block_lanczos, rayleigh_ritz
 from .linalg import factorize
 from .mesh import prepare
 
-__all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "default_cache_dir"]
+__all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "default_cache_dir", "shared_eigensolve", "set_cache",
+           "memoized", "cache_max_bytes"]
 
 log = logging.getLogger("o3dheat")
 
@@ -110,7 +113,9 @@ class Spectrum:
 
 
 def default_cache_dir():
-    """Folder of the on-disk spectrum cache: ``$O3DHEAT_CACHE`` or ``~/.cache/o3dheat``.
+    """Folder of the on-disk spectrum cache: ``$O3DHEAT_CACHE``, else the platform's user cache
+    folder (``$XDG_CACHE_HOME/o3dheat`` or ``~/.cache/o3dheat`` on Linux, ``~/Library/Caches/o3dheat``
+    on macOS, ``%LOCALAPPDATA%\\o3dheat\\Cache`` on Windows).
 
     Returns
     -------
@@ -119,11 +124,91 @@ def default_cache_dir():
     Examples
     --------
     >>> import o3dheat.spectrum as s
-    >>> s.default_cache_dir().name in ("o3dheat",) or True
+    >>> "o3dheat" in str(s.default_cache_dir())
     True
     """
     env = os.environ.get("O3DHEAT_CACHE")
-    return Path(env) if env else Path.home() / ".cache" / "o3dheat"
+    if env:
+        return Path(env)
+    if sys.platform == "win32" and os.environ.get("LOCALAPPDATA"):
+        return Path(os.environ["LOCALAPPDATA"]) / "o3dheat" / "Cache"
+    if sys.platform == "darwin":
+        return Path.home() / "Library" / "Caches" / "o3dheat"
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg and os.path.isabs(xdg) else Path.home() / ".cache") / "o3dheat"
+
+
+def cache_max_bytes():
+    """Size budget of the on-disk cache: ``$O3DHEAT_CACHE_MAX_MB`` megabytes, default 2048. The least
+    recently used spectra are deleted beyond it."""
+    try:
+        return int(float(os.environ.get("O3DHEAT_CACHE_MAX_MB", "2048")) * 2**20)
+    except ValueError:
+        raise MeshError(f"O3DHEAT_CACHE_MAX_MB must be a number, got {os.environ['O3DHEAT_CACHE_MAX_MB']!r}") from None
+
+
+# ------------------------------------------------------------------ the in-memory cache (shared)
+_MEMORY: OrderedDict = OrderedDict()
+_MEMORY_MAX = 8
+_DISK = None
+
+
+def set_cache(folder):
+    """The disk folder used by :func:`shared_eigensolve` (and the filters): a folder, True
+    (:func:`default_cache_dir`) or None (memory only, the default).
+
+    Examples
+    --------
+    >>> import tempfile, o3dheat.spectrum as s
+    >>> s.set_cache(tempfile.mkdtemp()); s.set_cache(None)
+    """
+    global _DISK
+    _DISK = folder
+
+
+def memoized(key, compute):
+    """``compute()``, remembered under ``key`` among the last 8 results (least recently used first
+    out): the one in-memory cache of spectra, for meshes and for operators built elsewhere."""
+    if key in _MEMORY:
+        _MEMORY.move_to_end(key)
+        return _MEMORY[key]
+    value = compute()
+    _MEMORY[key] = value
+    while len(_MEMORY) > _MEMORY_MAX:
+        _MEMORY.popitem(last=False)
+    return value
+
+
+def shared_eigensolve(V, F, k=100, mass="consistent", cache=None):
+    """The spectrum of ``(V, F)``, computed once per geometry and settings and then shared (the
+    last 8 in memory; on disk too with ``cache`` or :func:`set_cache`).
+
+    Parameters
+    ----------
+    V : (n, 3) float64 ndarray
+    F : (m, 3) int ndarray
+    k : int
+        Eigenpairs (capped at the number of vertices).
+    mass : str
+    cache : None, bool, str or Path
+        Disk folder (True: :func:`default_cache_dir`); None: what :func:`set_cache` set.
+
+    Returns
+    -------
+    Spectrum
+        Shared: do not modify its arrays.
+
+    Examples
+    --------
+    >>> import open3d as o3d, o3dheat.spectrum as s
+    >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)
+    >>> V, F = m.vertex.positions.numpy(), m.triangle.indices.numpy()
+    >>> s.shared_eigensolve(V, F, k=4) is s.shared_eigensolve(V, F, k=4)
+    True
+    """
+    k = min(int(k), len(V))
+    key = _cache_key(np.asarray(V), np.asarray(F), k, mass, "auto")
+    return memoized(key, lambda: eigensolve((V, F), k=k, mass=mass, cache=_DISK if cache is None else cache))
 
 
 def _fix_signs(X, chunk=16):
@@ -486,6 +571,10 @@ def _cache_load(folder, key):
     if not path.exists():
         return None
     try:
+        os.utime(path)  # used now: the last to be pruned
+    except OSError:
+        pass
+    try:
         with np.load(path, allow_pickle=False) as z:
             return (z["eigenvalues"], z["eigenvectors"], str(z["backend"]), float(z["sigma"]),
                     z["residuals"])
@@ -512,11 +601,48 @@ def _cache_valid(cached, L, B, k, tol):
 
 def _cache_save(folder, key, lam, X, backend, sigma, res):
     folder = Path(folder)
+    tmp = None
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".npz.tmp")
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix="spectrum-", suffix=".npz.tmp")
         with os.fdopen(fd, "wb") as fh:
             np.savez(fh, eigenvalues=lam, eigenvectors=X, backend=backend, sigma=sigma, residuals=res)
         os.replace(tmp, folder / f"spectrum-{key}.npz")
+        tmp = None
+        _cache_prune(folder, cache_max_bytes(), keep=folder / f"spectrum-{key}.npz")
     except OSError as e:
         log.warning("could not write the spectrum cache in %s (%s)", folder, e)
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _cache_prune(folder, budget, keep=None, stale_after=3600.0):
+    """Delete temporary files left by interrupted writes (older than an hour: a live writer is
+    faster), then the least recently used spectra until the folder holds at most ``budget`` bytes
+    (``keep``, the spectrum just written, stays even when it alone exceeds the budget)."""
+    now = time.time()
+    for tmp in folder.glob("spectrum-*.npz.tmp"):
+        try:
+            if now - tmp.stat().st_mtime > stale_after:
+                tmp.unlink()
+        except OSError:
+            pass
+    files = []
+    for f in folder.glob("spectrum-*.npz"):
+        try:
+            st = f.stat()
+            files.append((st.st_mtime, st.st_size, f))
+        except OSError:
+            pass
+    total = sum(size for _, size, _ in files)
+    for _, size, f in sorted(files):  # oldest use first
+        if total <= budget:
+            break
+        if f == keep:
+            continue
+        try:
+            f.unlink()
+            total -= size
+        except OSError:
+            pass

@@ -417,3 +417,35 @@ def test_beyond_the_representable_scales_the_mesh_is_refused(irregular_mesh):
     for alpha in (1e-150, 1e150):
         with pytest.raises(o3dheat.MeshError, match="rescale it"):
             o3dheat.eigensolve((alpha * V, F), k=4)
+
+
+def test_one_cache_bounded_cleaned_and_in_the_platform_folder(tmp_path, monkeypatch, irregular_mesh):
+    import os
+    import time
+
+    import o3dheat.spectrum as S
+
+    monkeypatch.delenv("O3DHEAT_CACHE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    if not (os.name == "nt" or __import__("sys").platform == "darwin"):
+        assert S.default_cache_dir() == tmp_path / "xdg" / "o3dheat"
+    folder = tmp_path / "c"
+    folder.mkdir()
+    stale = folder / "spectrum-abc.npz.tmp"  # left by a killed writer
+    stale.write_bytes(b"x")
+    os.utime(stale, (time.time() - 7200,) * 2)
+    fresh = folder / "spectrum-def.npz.tmp"  # a writer at work
+    fresh.write_bytes(b"x")
+    monkeypatch.setenv("O3DHEAT_CACHE_MAX_MB", "0.02")  # less than one spectrum
+    V, F = irregular_mesh
+    for k in (5, 6, 7):
+        o3dheat.eigensolve((V, F), k=k, cache=folder)
+        time.sleep(0.01)
+    kept = sorted(folder.glob("spectrum-*.npz"))
+    assert not stale.exists() and fresh.exists()
+    assert len(kept) == 1  # over the budget: only the newest stays
+    assert o3dheat.eigensolve((V, F), k=7, cache=folder).timings["cache"] is True  # the newest is kept
+    # the filters, the robust point-cloud operators and user code share the one memory cache
+    S._MEMORY.clear()
+    a = S.shared_eigensolve(V, F, k=6)
+    assert o3dheat.filters.shared_spectrum(V, F, k=6) is a and len(S._MEMORY) == 1
