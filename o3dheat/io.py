@@ -3,21 +3,34 @@
 Formats: PLY (binary by default) through plyfile, ``.npz`` (numpy), and for reading only every
 format Open3D reads (OBJ, OFF, STL, GLB, PCD, XYZ...).
 
-PLY layout written here: ``x y z`` (float64), ``nx ny nz`` when there are normals, ``red green
-blue`` as uchar (what every viewer reads) and, only when the colours are not exact multiples of
-1/255, their exact values as ``o3dheat_colors_0..2`` (float64). Any other vertex attribute ``a``
-of shape (n,) is a property ``a``; of shape (n, c) it is ``a_0 .. a_{c-1}`` with a header comment
-``o3dheat attribute a c`` so that :func:`read_mesh` restores the (n, c) array. Dtypes are kept.
+PLY layout written here: ``x y z`` in the positions' own float type (float or double),
+``nx ny nz`` (the normals' float type) when there are normals, ``red green blue`` as uchar (what
+every viewer reads) and, only when the colours are not exact multiples of 1/255, their exact
+values as ``o3dheat_colors_0..2``. Any other vertex attribute ``a`` of shape (n,) is a property
+``a``; of shape (n, c) or (n, a, b...) it is ``a_0 .. a_{c-1}`` (row-major) with a header comment
+``o3dheat attribute a C DTYPE [shape=(a,b)]`` (C the number of columns, DTYPE the numpy dtype,
+``shape=`` only when the trailing shape is not (C,); ``shape=()`` marks a one-column attribute
+stored as ``a``) so that :func:`read_mesh` restores the array with its shape and dtype. Types PLY
+lacks are stored exactly and restored from DTYPE: bool as uchar, int64/uint64 as int/uint when
+they fit, else as double when every |value| <= 2**53 (beyond: refused, use ``.npz``). Names PLY
+cannot hold (spaces, non-ASCII), reserved ones (``x y z nx ny nz red green blue``, ``alpha`` but
+for one column, ``o3dheat_colors*``) and names whose properties collide (``a_0`` beside a
+multi-column ``a``) are refused with a :class:`MeshError` before anything is written, as are
+face indices beyond int32. Comments of older files (``o3dheat attribute a C DTYPE``) read as
+before. On reading, a comment is used only when its columns exist, are unused, share one type
+that holds the recorded dtype exactly and its name is not reserved; other comments are ignored
+with a warning. The header is checked against the file size before plyfile allocates anything.
 A PLY without a face element is a point cloud.
 
 ``.npz`` layout: ``positions`` and ``indices`` (meshes), and every other attribute ``a`` as
-``vertex_a`` with its shape and dtype.
+``vertex_a`` with its shape and dtype (read without pickles).
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -87,7 +100,9 @@ def write_mesh(path, mesh, binary=True, overwrite=True):
     ------
     MeshError
         Wrong extension, no triangles, an attribute of the wrong length, an existing file with
-        ``overwrite=False``, or an unwritable path. The target is never left half-written.
+        ``overwrite=False``, an unwritable path, face indices outside the vertices or int32, or
+        (PLY) an attribute PLY cannot give back exactly (see the module documentation): raised
+        before anything is written. The target is never left half-written.
 
     Examples
     --------
@@ -114,6 +129,113 @@ def write_geometry(path, geometry, binary=True, overwrite=True):
     _write(path, *_attributes(geometry, need_faces=False), binary=binary, overwrite=overwrite)
 
 
+# Vertex properties with a meaning of their own in PLY (what viewers read): no attribute may be
+# stored under these names. "alpha" is allowed for a one-column attribute (where a PLY's alpha,
+# read as the attribute "alpha", goes back).
+_PLY_RESERVED = {"x", "y", "z", "nx", "ny", "nz", "red", "green", "blue"}
+_COLORS_KEY = "o3dheat_colors"
+# dtypes a PLY property holds as they are (kind + itemsize), and the other ones o3dheat stores
+# exactly in them: bool as uchar, 64-bit integers as int/uint when they fit, else as double when
+# every |value| <= 2**53; the original dtype is recorded in the header comment.
+_PLY_NATIVE = {"i1", "i2", "i4", "u1", "u2", "u4", "f4", "f8"}
+_PLY_STORED = {"b1": ("u1",), "i8": ("i4", "f8"), "u8": ("u4", "f8")}
+_MAX_EXACT = 2 ** 53
+_NAME_RE = re.compile(r"[!-~]+\Z")  # printable ASCII, no whitespace: one PLY header token
+
+
+def _code(dtype):
+    """'f8', 'i4', 'b1'... of a numpy dtype (kind and size, whatever the byte order)."""
+    return f"{dtype.kind}{dtype.itemsize}"
+
+
+def _ply_storable(name, arr, path):
+    """The array a PLY stores for attribute ``name`` (same values, a PLY-native dtype), or
+    MeshError when no PLY type holds it exactly."""
+    code = _code(arr.dtype)
+    if code in _PLY_NATIVE:
+        return arr
+    if code == "b1":
+        return arr.astype(np.uint8)
+    if code in ("i8", "u8"):
+        lo = int(arr.min()) if arr.size else 0
+        hi = int(arr.max()) if arr.size else 0
+        small = np.int32 if code == "i8" else np.uint32
+        if np.iinfo(small).min <= lo and hi <= np.iinfo(small).max:
+            return arr.astype(small)
+        if -_MAX_EXACT <= lo and hi <= _MAX_EXACT:
+            return arr.astype(np.float64)
+        raise MeshError(f"cannot write {path}: vertex attribute {name!r} ({arr.dtype}) has values beyond "
+                        f"±2**53, which PLY (no 64-bit integers) cannot store exactly: use .npz")
+    raise MeshError(f"cannot write {path}: vertex attribute {name!r} has dtype {arr.dtype}, which PLY "
+                    f"cannot store: use .npz")
+
+
+def _float_xyz(key, arr, path):
+    if arr.ndim != 2 or arr.shape[1] != 3 or _code(arr.dtype) not in ("f4", "f8"):
+        raise MeshError(f"cannot write {path}: PLY stores {key} as (n, 3) float32 or float64, got "
+                        f"{arr.shape[1:]} {arr.dtype}: use .npz")
+    return arr
+
+
+def _ply_vertex_table(attrs, path):
+    """(fields [(property, dtype str)], columns, header comments) of the PLY vertex element, or
+    MeshError (naming the attribute and why) for any attribute PLY cannot give back exactly."""
+    V = _float_xyz("positions", attrs["positions"], path)
+    fields = [(c, V.dtype.str) for c in "xyz"]
+    cols = [V[:, 0], V[:, 1], V[:, 2]]
+    comments, owner = [], {c: "positions" for c in "xyz"}
+
+    def add(key, props, arrays):
+        for p in props:
+            if p in owner:
+                why = ("a reserved PLY property" if owner[p] in ("positions", "normals", "colors")
+                       else f"already a property of attribute {owner[p]!r}")
+                raise MeshError(f"cannot write {path}: vertex attribute {key!r} would be stored as "
+                                f"property {p!r}, {why}: rename it")
+            owner[p] = key
+        fields.extend((p, a.dtype.str) for p, a in zip(props, arrays))
+        cols.extend(arrays)
+
+    if "normals" in attrs:
+        N = _float_xyz("normals", attrs["normals"], path)
+        add("normals", ["nx", "ny", "nz"], [N[:, 0], N[:, 1], N[:, 2]])
+    if "colors" in attrs:
+        C = attrs["colors"]
+        if C.ndim != 2 or C.shape[1] != 3:
+            raise MeshError(f"cannot write {path}: colors must have shape (n, 3), got {C.shape}: use .npz")
+        u8 = np.clip(np.round(np.asarray(C, dtype=np.float64) * 255), 0, 255).astype(np.uint8)
+        add("colors", ["red", "green", "blue"], [u8[:, 0], u8[:, 1], u8[:, 2]])
+        if C.dtype != np.float32 or not np.array_equal((u8 / 255.0).astype(C.dtype), C):
+            S = _ply_storable("colors", C, path)
+            comments.append(f"o3dheat attribute {_COLORS_KEY} 3 {C.dtype.str}")
+            add("colors", [f"{_COLORS_KEY}_{j}" for j in range(3)], [S[:, j] for j in range(3)])
+    for key, arr in attrs.items():
+        if key in _RESERVED:
+            continue
+        if not isinstance(key, str) or not _NAME_RE.match(key):
+            raise MeshError(f"cannot write {path}: vertex attribute {key!r}: a PLY property name must be "
+                            f"printable ASCII without spaces: rename it or use .npz")
+        if key in _PLY_RESERVED or key.startswith(_COLORS_KEY) or (key == "alpha" and arr.ndim != 1):
+            raise MeshError(f"cannot write {path}: vertex attribute {key!r} has the name of a reserved PLY "
+                            f"property (x y z nx ny nz red green blue, alpha only for one column, "
+                            f"{_COLORS_KEY}_*): rename it")
+        trailing = arr.shape[1:]
+        c = int(np.prod(trailing, dtype=np.int64))
+        if arr.ndim > 1 and c == 0:
+            raise MeshError(f"cannot write {path}: vertex attribute {key!r} has shape {arr.shape}: no "
+                            f"column to store in PLY: use .npz")
+        S = _ply_storable(key, arr, path).reshape(len(arr), -1)
+        if arr.ndim == 1:
+            add(key, [key], [S[:, 0]])
+            if S.dtype != arr.dtype:
+                comments.append(f"o3dheat attribute {key} 1 {arr.dtype.str} shape=()")
+        else:
+            add(key, [f"{key}_{j}" for j in range(c)], [S[:, j] for j in range(c)])
+            shape = "" if arr.ndim == 2 else " shape=(" + ",".join(map(str, trailing)) + ")"
+            comments.append(f"o3dheat attribute {key} {c} {arr.dtype.str}{shape}")
+    return fields, cols, comments
+
+
 def _write(path, attrs, F, binary, overwrite):
     path = Path(path)
     suffix = path.suffix.lower()
@@ -121,51 +243,35 @@ def _write(path, attrs, F, binary, overwrite):
         raise MeshError(f"o3dheat writes PLY or NPZ: {path} should end in .ply or .npz")
     if not overwrite and path.exists():
         raise MeshError(f"{path} exists (not overwritten)")
+    n = len(attrs["positions"])
+    if F is not None and F.size and (F.min() < 0 or F.max() >= min(n, 2 ** 31)):
+        raise MeshError(f"cannot write {path}: face indices outside [0, {min(n, 2 ** 31) - 1}] "
+                        f"(the vertices, and PLY's int32 indices)")
     if suffix == ".npz":
         arrays = {"positions": attrs["positions"]}
         if F is not None:
             arrays["indices"] = F
         arrays.update({f"vertex_{k}": v for k, v in attrs.items() if k != "positions"})
+        for k, v in arrays.items():
+            if v.dtype.hasobject:
+                raise MeshError(f"cannot write {path}: {k!r} holds Python objects")
         atomic_write(path, lambda fh: np.savez(fh, **arrays))
         return
     from plyfile import PlyData, PlyElement
 
-    V = attrs["positions"]
-    n = len(V)
-    fields, cols, comments = [], [], []
-    fields += [("x", "f8"), ("y", "f8"), ("z", "f8")]
-    cols += [V[:, 0], V[:, 1], V[:, 2]]
-    for key, arr in attrs.items():
-        if key == "positions":
-            continue
-        if key == "normals":
-            fields += [("nx", "f8"), ("ny", "f8"), ("nz", "f8")]
-            cols += [arr[:, 0], arr[:, 1], arr[:, 2]]
-        elif key == "colors":
-            u8 = np.clip(np.round(np.asarray(arr, dtype=np.float64) * 255), 0, 255).astype(np.uint8)
-            fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
-            cols += [u8[:, 0], u8[:, 1], u8[:, 2]]
-            if arr.dtype != np.float32 or not np.array_equal((u8 / 255.0).astype(arr.dtype), arr):
-                comments.append(f"o3dheat attribute o3dheat_colors 3 {arr.dtype.str}")
-                fields += [(f"o3dheat_colors_{j}", arr.dtype.str) for j in range(3)]
-                cols += [arr[:, j] for j in range(3)]
-        elif arr.ndim == 1:
-            fields.append((key, arr.dtype.str))
-            cols.append(arr)
-        else:
-            a2 = arr.reshape(n, -1)
-            comments.append(f"o3dheat attribute {key} {a2.shape[1]} {arr.dtype.str}")
-            fields += [(f"{key}_{j}", arr.dtype.str) for j in range(a2.shape[1])]
-            cols += [a2[:, j] for j in range(a2.shape[1])]
-    vert = np.empty(n, dtype=[(nm, np.dtype(dt).newbyteorder("<").str) for nm, dt in fields])
-    for (nm, _), col in zip(fields, cols):
-        vert[nm] = col
-    elements = [PlyElement.describe(vert, "vertex")]
-    if F is not None:
-        face = np.empty(len(F), dtype=[("vertex_indices", "i4", (3,))])
-        face["vertex_indices"] = F
-        elements.append(PlyElement.describe(face, "face"))
-    ply = PlyData(elements, text=not binary, comments=comments)
+    fields, cols, comments = _ply_vertex_table(attrs, path)
+    try:
+        vert = np.empty(n, dtype=[(nm, np.dtype(dt).newbyteorder("<").str) for nm, dt in fields])
+        for (nm, _), col in zip(fields, cols):
+            vert[nm] = col
+        elements = [PlyElement.describe(vert, "vertex")]
+        if F is not None:
+            face = np.empty(len(F), dtype=[("vertex_indices", "i4", (3,))])
+            face["vertex_indices"] = F
+            elements.append(PlyElement.describe(face, "face"))
+        ply = PlyData(elements, text=not binary, comments=comments)
+    except (ValueError, TypeError) as e:  # pragma: no cover - every known case is refused above
+        raise MeshError(f"cannot write {path}: {e}") from e
     atomic_write(path, ply.write)
 
 
@@ -245,7 +351,8 @@ def read_mesh(path):
     Raises
     ------
     MeshError
-        Missing, unreadable or truncated file, or one with no triangles.
+        Missing, unreadable or truncated file (a PLY whose header declares more rows than the
+        file can hold is refused before reading), or one with no triangles.
 
     Examples
     --------
@@ -293,22 +400,129 @@ def read_geometry(path):
         if len(legacy.triangles) == 0:
             raise MeshError(f"{path}: no triangles could be read (unreadable or empty file)")
         return o3d.t.geometry.TriangleMesh.from_legacy(legacy)
+    return _read_ply(path)
+
+
+_PLY_SIZES = {"char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2,
+              "uint16": 2, "int": 4, "int32": 4, "uint": 4, "uint32": 4, "float": 4, "float32": 4,
+              "double": 8, "float64": 8}
+_MAX_HEADER = 65536
+_MAX_ROWS = 2 ** 40
+
+
+def _check_ply_header(path):
+    """Parse a PLY header (at most 64 KB) and refuse, before plyfile allocates anything, a file
+    too small for the rows its header declares (each binary row needs its fixed properties and
+    the count of each list, each ASCII value at least 2 bytes), or an absurd declaration."""
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(_MAX_HEADER)
+    bad = f"{path}: not a readable PLY file"
+    if not head.startswith(b"ply"):
+        raise MeshError(f"{bad} (no 'ply' magic)")
+    end, offset, lines = None, 0, []
+    for raw in head.split(b"\n"):
+        complete = offset + len(raw) < len(head)
+        offset += len(raw) + 1
+        if raw.strip() == b"end_header" and (complete or len(head) == size):
+            end = min(offset, size)
+            break
+        lines.append(raw.decode("ascii", errors="replace").split())
+    if end is None:
+        raise MeshError(f"{bad}: no end_header in the first {_MAX_HEADER} bytes" if size > _MAX_HEADER
+                        else f"{bad}: no end_header (truncated or not a PLY file)")
+    fmt, elements = None, []  # [name, count, binary row bytes, ascii row values]
+    for words in lines[1:]:
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        if words[0] == "format" and len(words) == 3:
+            fmt = words[1]
+        elif words[0] == "element" and len(words) == 3:
+            if not words[2].isdigit() or int(words[2]) > _MAX_ROWS:
+                raise MeshError(f"{bad}: absurd element count in header line {' '.join(words)!r}")
+            elements.append([words[1], int(words[2]), 0, 0])
+        elif words[0] == "property" and elements and len(words) == 3 and words[1] in _PLY_SIZES:
+            elements[-1][2] += _PLY_SIZES[words[1]]
+            elements[-1][3] += 1
+        elif (words[0] == "property" and elements and len(words) == 5 and words[1] == "list"
+              and words[2] in _PLY_SIZES and words[3] in _PLY_SIZES):
+            elements[-1][2] += _PLY_SIZES[words[2]]
+            elements[-1][3] += 1
+        else:
+            raise MeshError(f"{bad}: unexpected header line {' '.join(words)[:80]!r}")
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        raise MeshError(f"{bad}: unknown format {fmt!r}")
+    if fmt == "ascii":
+        need = max(sum(count * (2 * values or 1) for _, count, _, values in elements) - 1, 0)
+    else:
+        need = sum(count * max(row, 1) for _, count, row, _ in elements)
+    if need > size - end:
+        plural = {"vertex": "vertices", "face": "faces"}
+        what = " and ".join(f"{count} {plural.get(name, repr(name) + ' rows')}" for name, count, _, _ in elements)
+        raise MeshError(f"{bad}: truncated or corrupt: the header declares {what}, the file has {size} "
+                        f"bytes ({size - end} after its header, at least {need} needed)")
+
+
+def _parse_comment(comment, path):
+    """(name, columns, original dtype or None, trailing shape or None) of a comment
+    ``o3dheat attribute NAME C DTYPE [shape=(a,b)]``, None for other comments; malformed ones
+    are logged and ignored."""
+    parts = comment.split()
+    if parts[:2] != ["o3dheat", "attribute"]:
+        return None
+    try:
+        if len(parts) < 4 or not parts[3].isdigit() or not 0 < int(parts[3]) <= 1 << 20:
+            raise ValueError("no column count")
+        name, c = parts[2], int(parts[3])
+        dtype = np.dtype(parts[4]) if len(parts) > 4 else None
+        if dtype is not None and _code(dtype) not in _PLY_NATIVE | set(_PLY_STORED):
+            raise ValueError(f"dtype {dtype} is not one o3dheat writes")
+        shape = None
+        for extra in parts[5:]:
+            if extra.startswith("shape="):
+                m = re.fullmatch(r"\(((?:[1-9]\d{0,6},)*(?:[1-9]\d{0,6})?)\)", extra[6:])
+                if not m:
+                    raise ValueError(f"bad {extra!r}")
+                shape = tuple(int(s) for s in m.group(1).split(",") if s)
+                if len(shape) > 16 or int(np.prod(shape, dtype=object)) != c:
+                    raise ValueError(f"{extra!r} does not hold {c} columns")
+    except (ValueError, TypeError) as e:
+        log.warning("%s: ignoring malformed header comment %r (%s)", path, comment, e)
+        return None
+    return name, c, dtype, shape
+
+
+def _restore(arr, dtype):
+    """``arr`` (as stored) in its original dtype, or None when the values do not fit it exactly."""
+    if dtype is None:
+        return arr.astype(arr.dtype.newbyteorder("="))
+    code, stored = _code(dtype), _code(arr.dtype)
+    if code == stored:
+        return arr.astype(dtype.newbyteorder("="))
+    if stored not in _PLY_STORED.get(code, ()):
+        return None
+    if code == "b1":
+        return arr.astype(bool) if np.all((arr == 0) | (arr == 1)) else None
+    if stored == "f8" and not (np.all(np.isfinite(arr)) and np.all(arr == np.round(arr))
+                               and np.all(np.abs(arr) <= _MAX_EXACT) and (code == "i8" or np.all(arr >= 0))):
+        return None
+    return arr.astype(dtype.newbyteorder("="))
+
+
+def _read_ply(path):
+    import open3d as o3d
     from plyfile import PlyData
 
+    _check_ply_header(path)
     try:
         ply = PlyData.read(str(path))
         vert = ply["vertex"].data
         face = ply["face"].data if "face" in [e.name for e in ply.elements] else None
     except Exception as e:
         raise MeshError(f"{path}: not a readable PLY file ({type(e).__name__}: {e})") from e
-    names = list(vert.dtype.names)
+    names = list(vert.dtype.names or ())
     if not {"x", "y", "z"} <= set(names):
         raise MeshError(f"{path}: the vertices have no x, y, z")
-    multi = {}
-    for c in ply.comments:
-        parts = c.split()
-        if len(parts) >= 4 and parts[:2] == ["o3dheat", "attribute"]:
-            multi[parts[2]] = int(parts[3])
     if face is not None and len(face):
         fkey = "vertex_indices" if "vertex_indices" in face.dtype.names else face.dtype.names[0]
         F = _triangulate(face[fkey], path)
@@ -316,19 +530,44 @@ def read_geometry(path):
             raise MeshError(f"{path}: face indices out of range (corrupted file?)")
     else:
         F = None
+    n = len(vert)
     geo, attrs = _geometry(F)
-    attrs["positions"] = o3d.core.Tensor(np.stack([vert["x"], vert["y"], vert["z"]], 1).astype(np.float64))
+    xyz = [vert[c] for c in "xyz"]
+    same = len({c.dtype.str for c in xyz}) == 1 and _code(xyz[0].dtype) in ("f4", "f8")
+    ftype = xyz[0].dtype.newbyteorder("=") if same else np.dtype(np.float64)
+    attrs["positions"] = o3d.core.Tensor(np.stack(xyz, 1).astype(ftype))
     used = {"x", "y", "z"}
     if {"nx", "ny", "nz"} <= set(names):
-        attrs["normals"] = o3d.core.Tensor(np.stack([vert["nx"], vert["ny"], vert["nz"]], 1))
+        N = np.stack([vert["nx"], vert["ny"], vert["nz"]], 1)
+        attrs["normals"] = o3d.core.Tensor(N.astype(N.dtype.newbyteorder("=") if N.dtype.kind == "f" else np.float64))
         used |= {"nx", "ny", "nz"}
-    for key, c in multi.items():
-        cols = [f"{key}_{j}" for j in range(c)]
-        if not set(cols) <= set(names):
+    reserved = _PLY_RESERVED | {"nx", "ny", "nz"}
+    for comment in ply.comments:
+        parsed = _parse_comment(comment, path)
+        if parsed is None:
             continue
-        arr = np.stack([vert[nm] for nm in cols], 1)
+        name, c, dtype, shape = parsed
+        target = "colors" if name == _COLORS_KEY else name
+        cols = [name] if shape == () else [f"{name}_{j}" for j in range(c)]
+        why = None
+        if target in _RESERVED and not (name == _COLORS_KEY and c == 3 and shape in (None, (3,))):
+            why = f"{name!r} is a reserved name"
+        elif name in reserved or name in attrs:
+            why = f"{name!r} is reserved or already read"
+        elif not set(cols) <= set(names) - used or (shape == () and c != 1):
+            why = "it names columns that do not exist or are already used"
+        elif len({vert[nm].dtype.str for nm in cols}) != 1:
+            why = "its columns have different types"
+        if why is None:
+            arr = _restore(np.stack([vert[nm] for nm in cols], 1), dtype)
+            if arr is None:
+                why = f"the columns ({vert[cols[0]].dtype}) do not hold {dtype} values"
+        if why is not None:
+            log.warning("%s: ignoring header comment %r: %s", path, comment, why)
+            continue
         used |= set(cols)
-        attrs["colors" if key == "o3dheat_colors" else key] = o3d.core.Tensor(np.ascontiguousarray(arr))
+        arr = arr.reshape((n,) + (shape if shape is not None else (c,)))
+        attrs[target] = o3d.core.Tensor(np.ascontiguousarray(arr))
     if {"red", "green", "blue"} <= set(names):
         used |= {"red", "green", "blue"}
         if "colors" not in attrs:
@@ -336,8 +575,13 @@ def read_geometry(path):
             scale = 255.0 if rgb.dtype == np.uint8 else (65535.0 if rgb.dtype == np.uint16 else 1.0)
             attrs["colors"] = o3d.core.Tensor((rgb / scale).astype(np.float32))
     for nm in names:
-        if nm not in used:
-            attrs[nm] = o3d.core.Tensor(np.ascontiguousarray(vert[nm]))
+        if nm in used:
+            continue
+        if nm in _RESERVED or nm in attrs:
+            log.warning("%s: ignoring vertex property %r (a reserved or already read attribute name)", path, nm)
+            continue
+        col = vert[nm]
+        attrs[nm] = o3d.core.Tensor(np.ascontiguousarray(col.astype(col.dtype.newbyteorder("="))))
     return geo
 
 
@@ -354,14 +598,16 @@ def _geometry(F):
 
 
 def read_toml(path):
-    """A TOML file as a dict (MeshError when it is missing or invalid)."""
+    """A TOML file as a dict (MeshError when it is missing, not UTF-8 or invalid)."""
     try:
         import tomllib
     except ImportError:  # pragma: no cover - Python 3.10
         import tomli as tomllib
     path = Path(path)
     try:
-        return tomllib.loads(path.read_text())
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as e:
+        raise MeshError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from e
     except OSError as e:
         raise MeshError(f"cannot read {path}: {e.strerror}") from e
     except tomllib.TOMLDecodeError as e:
@@ -390,6 +636,8 @@ def _read_npz(path):
     attrs["positions"] = o3d.core.Tensor(V)
     for key, arr in data.items():
         name = key[len("vertex_"):] if key.startswith("vertex_") else key
+        if name == "positions" or arr.ndim == 0:
+            raise MeshError(f"{path}: {key!r} is not a vertex attribute o3dheat writes (corrupt or crafted file)")
         if len(arr) != n:
             raise MeshError(f"{path}: {key!r} has {len(arr)} rows for {n} vertices")
         attrs[name] = o3d.core.Tensor(np.ascontiguousarray(arr))

@@ -3,6 +3,8 @@
 import numpy as np
 import open3d as o3d
 import pytest
+from hypothesis import HealthCheck, event, given, settings
+from hypothesis import strategies as st
 
 import o3dheat
 from o3dheat.io import read_mesh, write_mesh
@@ -177,3 +179,339 @@ def test_faces_with_fewer_than_three_corners_are_refused(tmp_path):
     _polygon_ply(p, np.eye(3), [[0, 1, 2], [0, 1]])
     with pytest.raises(o3dheat.MeshError, match="fewer than 3 corners"):
         read_mesh(p)
+
+
+# ---------------------------------------------------------------- exact round trips (issue 13)
+
+_DTYPES = [np.bool_, np.int8, np.int16, np.int32, np.int64, np.uint8, np.uint16, np.uint32, np.uint64,
+           np.float32, np.float64]
+_FORMATS = [("ply", True), ("ply", False), ("npz", True)]
+
+
+def _extremes(dtype, size, rng):
+    """``size`` values of ``dtype`` with its extremes (64-bit integers: within ±2**53, what PLY
+    holds exactly), signed zeros, infinities and subnormals for floats."""
+    dtype = np.dtype(dtype)
+    if dtype == bool:
+        return rng.integers(0, 2, size).astype(bool)
+    if dtype.kind in "iu":
+        info = np.iinfo(dtype)
+        lo, hi = max(int(info.min), -2 ** 53), min(int(info.max), 2 ** 53)
+        special = np.array([lo, hi, 0, 1, lo + 1, hi - 1], dtype=dtype)
+        vals = rng.integers(lo, hi, size, dtype=dtype, endpoint=True)
+    else:
+        info = np.finfo(dtype)
+        special = np.array([info.max, -info.max, info.tiny, info.smallest_subnormal, -0.0, np.inf, -np.inf,
+                            info.eps, 1 / 3], dtype=dtype)
+        vals = rng.standard_normal(size).astype(dtype) * dtype.type(10.0) ** rng.integers(-30, 30, size).astype(dtype)
+    vals[: min(size, len(special))] = special[:size]
+    return vals
+
+
+def _bits(a):
+    """The bytes of an array as unsigned integers (bit-exact comparison, -0.0 != 0.0)."""
+    a = np.ascontiguousarray(a)
+    return a.view(np.uint8) if a.dtype == bool else a.view(f"u{a.dtype.itemsize}")
+
+
+def _assert_exact(orig, back):
+    assert sorted(orig) == sorted(back)
+    for key in orig:
+        a, b = orig[key].numpy(), back[key].numpy()
+        assert (a.dtype, a.shape) == (b.dtype, b.shape), (key, a.dtype, a.shape, b.dtype, b.shape)
+        np.testing.assert_array_equal(_bits(a), _bits(b), err_msg=key)
+
+
+def _leftovers(folder, keep=()):
+    return sorted(p.name for p in folder.iterdir() if p.name not in keep)
+
+
+def _sphere(float_dtype=np.float32):
+    dt = o3d.core.float32 if float_dtype == np.float32 else o3d.core.float64
+    return o3d.t.geometry.TriangleMesh.create_sphere(1.0, 4, float_dtype=dt)
+
+
+@pytest.mark.parametrize("fmt,binary", _FORMATS, ids=["ply-binary", "ply-ascii", "npz"])
+@pytest.mark.parametrize("float_dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("dtype", _DTYPES, ids=lambda d: np.dtype(d).name)
+def test_every_dtype_and_shape_round_trips_exactly(tmp_path, dtype, float_dtype, fmt, binary):
+    m = _sphere(float_dtype)
+    n = len(m.vertex.positions)
+    rng = np.random.default_rng(1)
+    m.vertex.normals = o3d.core.Tensor(_extremes(float_dtype, n * 3, rng).reshape(n, 3))
+    for name, shape in [("s", (n,)), ("v", (n, 3)), ("t", (n, 2, 3)), ("one", (n, 1)), ("w", (n, 1, 4, 2))]:
+        m.vertex[name] = o3d.core.Tensor(_extremes(dtype, int(np.prod(shape)), rng).reshape(shape))
+    p = tmp_path / f"m.{fmt}"
+    write_mesh(p, m, binary=binary)
+    back = read_mesh(p)
+    _assert_exact(m.vertex, back.vertex)
+    np.testing.assert_array_equal(m.triangle.indices.numpy(), back.triangle.indices.numpy())
+    if fmt == "ply":  # also as a point cloud
+        from o3dheat.io import read_geometry, write_geometry
+        pc = o3d.t.geometry.PointCloud(m.vertex.positions)
+        pc.point["t"] = m.vertex["t"]
+        write_geometry(tmp_path / "p.ply", pc, binary=binary)
+        _assert_exact(pc.point, read_geometry(tmp_path / "p.ply").point)
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_foreign_ply_keeps_its_position_type(tmp_path, binary):
+    from plyfile import PlyData, PlyElement
+    vert = np.zeros(3, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4"), ("q", ">i2")])
+    vert["x"], vert["q"] = [0.1, 0.2, 0.3], [1, -2, 3]
+    p = tmp_path / "f.ply"
+    PlyData([PlyElement.describe(vert, "vertex")], text=not binary, byte_order=">").write(str(p))
+    from o3dheat.io import read_geometry
+    g = read_geometry(p)
+    assert g.point.positions.numpy().dtype == np.float32
+    np.testing.assert_array_equal(g.point.positions.numpy()[:, 0], vert["x"])
+    assert g.point["q"].numpy().tolist() == [1, -2, 3] and g.point["q"].numpy().dtype == np.int16
+    vert = np.zeros(3, dtype=[("x", "i4"), ("y", "f4"), ("z", "f8")])  # mixed: float64
+    PlyData([PlyElement.describe(vert, "vertex")], text=not binary).write(str(p))
+    assert read_geometry(p).point.positions.numpy().dtype == np.float64
+
+
+def _refusal_cases(n):
+    big = np.zeros(n, np.int64)
+    big[3] = 2 ** 53 + 1
+    ubig = np.zeros(n, np.uint64)
+    ubig[0] = 2 ** 64 - 1
+    z = np.zeros(n)
+    return [
+        ({"a b": z}, "'a b'.*spaces"),
+        ({"é": z}, "'é'.*ASCII"),
+        ({"x": z}, "'x'.*reserved"),
+        ({"nx": z}, "'nx'.*reserved"),
+        ({"red": z}, "'red'.*reserved"),
+        ({"blue": np.zeros((n, 2))}, "'blue'.*reserved"),
+        ({"alpha": np.zeros((n, 2))}, "'alpha'.*reserved"),
+        ({"o3dheat_colors_1": z}, "'o3dheat_colors_1'.*reserved"),
+        ({"o3dheat_colors": np.zeros((n, 3))}, "'o3dheat_colors'.*reserved"),
+        ({"a": np.zeros((n, 2)), "a_0": z}, "property 'a_0', already a property of attribute"),
+        ({"a": np.zeros((n, 2, 2)), "a_3": z}, "property 'a_3'"),
+        ({"big": big}, "'big'.*2\\*\\*53.*npz"),
+        ({"ubig": ubig}, "'ubig'.*2\\*\\*53.*npz"),
+        ({"empty": np.zeros((n, 0))}, "'empty'.*no column"),
+        ({"normals": np.zeros((n, 3), np.int32)}, "normals.*float"),
+        ({"colors": np.zeros((n, 4))}, "colors.*\\(n, 3\\)"),
+    ]
+
+
+@pytest.mark.parametrize("case", range(16))
+def test_unstorable_attributes_are_refused_before_writing(tmp_path, case):
+    m = _sphere()
+    attrs, match = _refusal_cases(len(m.vertex.positions))[case]
+    for key, arr in attrs.items():
+        m.vertex[key] = o3d.core.Tensor(arr)
+    old = tmp_path / "old.ply"
+    old.write_bytes(b"previous content")
+    for p in (old, tmp_path / "new.ply"):
+        with pytest.raises(o3dheat.MeshError, match=match):
+            write_mesh(p, m)
+    assert old.read_bytes() == b"previous content"
+    assert _leftovers(tmp_path) == ["old.ply"]
+
+
+def test_face_indices_beyond_int32_and_bad_positions_are_refused(tmp_path):
+    m = _sphere()
+    m.triangle.indices = o3d.core.Tensor(np.array([[0, 1, 2 ** 31]], dtype=np.int64))
+    for suffix in (".ply", ".npz"):
+        with pytest.raises(o3dheat.MeshError, match="face indices outside"):
+            write_mesh(tmp_path / f"m{suffix}", m)
+    pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.eye(3, dtype=np.int32)))
+    from o3dheat.io import read_geometry, write_geometry
+    with pytest.raises(o3dheat.MeshError, match="positions.*float32 or float64.*npz"):
+        write_geometry(tmp_path / "p.ply", pc)
+    assert _leftovers(tmp_path) == []
+    write_geometry(tmp_path / "p.npz", pc)  # npz keeps them
+    _assert_exact(pc.point, read_geometry(tmp_path / "p.npz").point)
+
+
+_NAMES = st.text(alphabet="anx_0", min_size=1, max_size=3)
+_SHAPES = st.one_of(st.just(()), st.tuples(st.integers(1, 3)), st.tuples(st.integers(1, 2), st.integers(1, 3)))
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(attrs=st.dictionaries(_NAMES, st.tuples(st.sampled_from(_DTYPES), _SHAPES, st.booleans()), max_size=4),
+       fmt=st.sampled_from(_FORMATS), seed=st.integers(0, 2 ** 32 - 1))
+def test_random_attributes_round_trip_or_are_refused(tmp_path_factory, attrs, fmt, seed):
+    folder = tmp_path_factory.mktemp("h")
+    m = _sphere(np.float64 if seed % 2 else np.float32)
+    n = len(m.vertex.positions)
+    rng = np.random.default_rng(seed)
+    for key, (dtype, shape, wide) in attrs.items():
+        size = n * int(np.prod(shape))
+        if wide and np.dtype(dtype).kind in "iu":  # the whole range, beyond 2**53 for 64 bits
+            vals = rng.integers(np.iinfo(dtype).min, np.iinfo(dtype).max, size, dtype=dtype, endpoint=True)
+        else:
+            vals = _extremes(dtype, size, rng)
+        m.vertex[key] = o3d.core.Tensor(vals.reshape((n,) + shape))
+    p = folder / f"m.{fmt[0]}"
+    try:
+        write_mesh(p, m, binary=fmt[1])
+    except o3dheat.MeshError:
+        event("refused")
+        assert fmt[0] == "ply" and _leftovers(folder) == []
+        return
+    event(f"round trip ({fmt[0]})")
+    assert _leftovers(folder) == [p.name]
+    _assert_exact(m.vertex, read_mesh(p).vertex)
+
+
+# ---------------------------------------------------------------- crafted and old files
+
+def _ply(path, props, comments=(), binary=True, n=4):
+    """A PLY point set with x, y, z = arange and the given extra vertex properties."""
+    from plyfile import PlyData, PlyElement
+    cols = {"x": np.arange(n, dtype="f8"), "y": np.arange(n, dtype="f8") + 10, "z": np.arange(n, dtype="f8") + 20}
+    cols.update({k: np.asarray(v) for k, v in props.items()})
+    vert = np.empty(n, dtype=[(k, v.dtype.str) for k, v in cols.items()])
+    for k, v in cols.items():
+        vert[k] = v
+    PlyData([PlyElement.describe(vert, "vertex")], text=not binary, comments=list(comments)).write(str(path))
+    return cols
+
+
+_F2 = {"a_0": np.ones(4), "a_1": np.full(4, 0.5)}
+_SPOOFS = [  # (comment, extra properties, {attribute: shape} expected beside positions)
+    ("o3dheat attribute x 3 <f8", {"x_0": np.ones(4), "x_1": np.ones(4), "x_2": np.ones(4)},
+     {"x_0": (4,), "x_1": (4,), "x_2": (4,)}),
+    ("o3dheat attribute positions 2 <f8", {"positions_0": np.ones(4), "positions_1": np.ones(4)},
+     {"positions_0": (4,), "positions_1": (4,)}),
+    ("o3dheat attribute normals 2 <f8", {"normals_0": np.ones(4), "normals_1": np.ones(4)},
+     {"normals_0": (4,), "normals_1": (4,)}),
+    ("o3dheat attribute colors 1 <f8 shape=()", {"colors": np.ones(4)}, {}),
+    ("o3dheat attribute o3dheat_colors 2 <f8", {"o3dheat_colors_0": np.ones(4), "o3dheat_colors_1": np.ones(4)},
+     {"o3dheat_colors_0": (4,), "o3dheat_colors_1": (4,)}),
+    ("o3dheat attribute a 5 <f8", _F2, {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a 2 <f8 shape=(1000000,1000000)", _F2, {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a 2 <f8 shape=(-2,-1)", _F2, {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a 99999999999999999999 <f8", _F2, {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a two <f8", _F2, {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a 2 object", _F2, {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a 2 <c16", _F2, {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute", _F2, {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a 2 <i8", _F2, {"a_0": (4,), "a_1": (4,)}),  # 0.5 is no int64
+    ("o3dheat attribute a 2 <f4", _F2, {"a_0": (4,), "a_1": (4,)}),  # columns are f8
+    ("o3dheat attribute a 2 |b1", {"a_0": np.full(4, 2, np.uint8), "a_1": np.ones(4, np.uint8)},
+     {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a 2 <f8", {"a_0": np.ones(4), "a_1": np.ones(4, "f4")}, {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a_0 1 <f8 shape=()", {"a_0": np.ones(4)}, {"a_0": (4,)}),  # harmless, as written
+    ("o3dheat attribute y 1 <f8 shape=()", {}, {}),
+]
+
+
+@pytest.mark.parametrize("case", range(len(_SPOOFS)))
+@pytest.mark.parametrize("binary", [True, False])
+def test_crafted_comments_are_ignored(tmp_path, caplog, case, binary):
+    import logging
+    from o3dheat.io import read_geometry
+    comment, props, expected = _SPOOFS[case]
+    p = tmp_path / "c.ply"
+    cols = _ply(p, props, [comment, comment], binary)  # twice: a repeated comment is no problem either
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        g = read_geometry(p)
+    np.testing.assert_array_equal(g.point.positions.numpy(), np.stack([cols["x"], cols["y"], cols["z"]], 1))
+    got = {k: g.point[k].numpy().shape for k in g.point if k != "positions"}
+    assert got == expected
+    if case != len(_SPOOFS) - 2:
+        assert "ignoring" in caplog.text
+
+
+def test_plain_property_named_positions_is_ignored(tmp_path, caplog):
+    from o3dheat.io import read_geometry
+    p = tmp_path / "c.ply"
+    cols = _ply(p, {"positions": np.full(4, 7.0), "normals": np.ones(4)})
+    g = read_geometry(p)
+    assert sorted(g.point) == ["positions"]
+    np.testing.assert_array_equal(g.point.positions.numpy()[:, 0], cols["x"])
+    assert "ignoring vertex property 'positions'" in caplog.text
+
+
+def test_old_format_comments_still_read(tmp_path):
+    """Files written before the shape/dtype extension: ``o3dheat attribute NAME C DTYPE``."""
+    from o3dheat.io import read_geometry
+    r = np.random.default_rng(0)
+    hks = r.random((4, 3))
+    props = {f"hks_{j}": hks[:, j] for j in range(3)}
+    props.update({"lab_0": np.arange(4, dtype="i4"), "lab_1": np.arange(4, dtype="i4"), "f": np.ones(4, "f4")})
+    col = r.random((4, 3))
+    props.update({f"o3dheat_colors_{j}": col[:, j] for j in range(3)})
+    props.update({"red": np.zeros(4, "u1"), "green": np.zeros(4, "u1"), "blue": np.zeros(4, "u1")})
+    p = tmp_path / "old.ply"
+    _ply(p, props, ["o3dheat attribute hks 3 <f8", "o3dheat attribute lab 2",
+                    "o3dheat attribute o3dheat_colors 3 <f8"])
+    g = read_geometry(p)
+    np.testing.assert_array_equal(g.point["hks"].numpy(), hks)
+    assert g.point["lab"].numpy().dtype == np.int32 and g.point["lab"].numpy().shape == (4, 2)
+    assert g.point["f"].numpy().dtype == np.float32
+    np.testing.assert_array_equal(g.point.colors.numpy(), col)
+    assert sorted(g.point) == ["colors", "f", "hks", "lab", "positions"]
+
+
+_HEAD = (b"ply\nformat %s 1.0\nelement vertex %s\nproperty float x\nproperty float y\nproperty float z\n"
+         b"element face %s\nproperty list uchar int vertex_indices\nend_header\n")
+
+
+@pytest.mark.parametrize("fmt", [b"binary_little_endian", b"ascii"])
+def test_huge_header_counts_are_refused_before_reading(tmp_path, fmt):
+    p = tmp_path / "huge.ply"
+    p.write_bytes(_HEAD % (fmt, b"1000000000", b"0") + bytes(10_000))
+    with pytest.raises(o3dheat.MeshError, match=r"truncated or corrupt: the header declares 1000000000 vertices "
+                                                r"and 0 faces, the file has \d+ bytes"):
+        read_mesh(p)
+    p.write_bytes(_HEAD % (fmt, b"3", b"1000000000") + bytes(10_000))
+    with pytest.raises(o3dheat.MeshError, match="1000000000 faces"):
+        read_mesh(p)
+    for count in (b"99999999999999999999999", b"-1", b"1e9"):
+        p.write_bytes(_HEAD % (fmt, count, b"0") + bytes(100))
+        with pytest.raises(o3dheat.MeshError, match="absurd element count"):
+            read_mesh(p)
+
+
+def test_bad_headers_are_refused(tmp_path):
+    p = tmp_path / "h.ply"
+    for data, match in [
+        (b"ply\nformat ascii 1.0\nelement vertex 1\n" + b"comment x\n" * 8000, "no end_header in the first"),
+        (b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n", "no end_header"),
+        (b"PLY\n", "no 'ply' magic"),
+        (b"ply\nformat weird 1.0\nelement vertex 0\nend_header\n", "unknown format"),
+        (b"ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n1\n", "unexpected header line"),
+        (b"ply\nformat ascii 1.0\nproperty float x\nend_header\n", "unexpected header line"),
+    ]:
+        p.write_bytes(data)
+        with pytest.raises(o3dheat.MeshError, match=match):
+            read_mesh(p)
+
+
+def test_written_files_pass_the_header_check_exactly(tmp_path):
+    """The size bound is tight enough for real files: an empty-attribute point cloud and a mesh
+    with one vertex row cut off."""
+    m = _sphere()
+    p = tmp_path / "m.ply"
+    write_mesh(p, m)
+    data = p.read_bytes()
+    assert len(read_mesh(p).vertex.positions) == 26
+    p.write_bytes(data[: -(48 * 13)])  # all faces but a few bytes: plyfile or the size check refuses
+    with pytest.raises(o3dheat.MeshError, match="not a readable PLY"):
+        read_mesh(p)
+
+
+def test_non_utf8_toml_is_a_mesh_error(tmp_path):
+    from o3dheat.io import read_toml
+    p = tmp_path / "s.toml"
+    p.write_bytes(b"name = \"\xff\xfe\"\n")
+    with pytest.raises(o3dheat.MeshError, match="s.toml.*not UTF-8"):
+        read_toml(p)
+
+
+def test_crafted_npz_is_refused(tmp_path):
+    from o3dheat.io import read_geometry
+    p = tmp_path / "obj.npz"
+    np.savez(p, positions=np.zeros((3, 3)), vertex_o=np.array([{"a": 1}, None, 3], dtype=object))
+    with pytest.raises(o3dheat.MeshError, match="not a readable NPZ.*pickle"):
+        read_geometry(p)
+    p = tmp_path / "pos.npz"
+    np.savez(p, positions=np.zeros((3, 3)), vertex_positions=np.ones((3, 3)))
+    with pytest.raises(o3dheat.MeshError, match="'vertex_positions'"):
+        read_geometry(p)
