@@ -9,7 +9,7 @@ from .diffusion import diffuse
 from .errors import MeshError, SolverError
 from .fem import mass_matrix, stiffness_matrix
 from .kernel import VARIANTS, HeatKernel, heat_kernel
-from .mesh import MeshReport, as_arrays, check_mesh
+from .mesh import MeshReport, Repaired, as_arrays, check_mesh, repair
 from .spectrum import Spectrum, eigensolve
 from .study import robustness_study
 from .topology import (CriticalPoints, PersistenceDiagram, critical_points, level_sets, persistence,
@@ -20,7 +20,7 @@ from . import approximation, fem, filters, io, plot, sampling, study, topology  
 __version__ = "0.1.0"
 
 __all__ = [
-    "as_arrays", "check_mesh", "MeshReport",
+    "as_arrays", "check_mesh", "MeshReport", "repair", "Repaired",
     "stiffness_matrix", "mass_matrix",
     "eigensolve", "Spectrum",
     "HeatKernel", "heat_kernel", "VARIANTS",

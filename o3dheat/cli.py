@@ -22,6 +22,11 @@ EXAMPLES = {
   o3dheat demo --out /tmp/bunny.ply -k 50""",
     "info": """examples:
   o3dheat info mesh.ply""",
+    "repair": """examples:
+  o3dheat repair scan.stl scan.ply                       # weld, drop bad faces, split, orient
+  o3dheat repair scan.ply clean.ply --min-component-faces 100   # also drop small pieces
+
+Vertex attributes of a PLY input are carried over. The input is never overwritten.""",
     "filters": """examples:
   o3dheat filters                 # list the installed filters
   o3dheat filters heat_smooth     # its parameters, types, defaults and help""",
@@ -78,6 +83,15 @@ def _parser():
     d.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
     i = _sub(sub, "info", "check a mesh and report what matters to the FEM operators")
     i.add_argument("mesh", help="mesh file (PLY, OBJ, OFF, STL, ...)")
+    r = _sub(sub, "repair", "repair a mesh: weld, drop bad faces, split non-manifold edges and vertices, orient")
+    r.add_argument("input", help="mesh file (PLY, OBJ, OFF, STL, ...)")
+    r.add_argument("output", help="output .ply or .npz")
+    r.add_argument("--min-component-faces", type=int, default=0, metavar="N",
+                   help="remove components with fewer faces (default: keep all)")
+    r.add_argument("--no-split", action="store_true", help="keep non-manifold edges and vertices")
+    r.add_argument("--no-orient", action="store_true", help="keep the faces' orientation")
+    r.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
+    r.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
     f = _sub(sub, "filters", "list the installed filters, or describe one")
     f.add_argument("name", nargs="?", help="a filter name")
     a = _sub(sub, "apply", "run a chain of filters on a mesh or point cloud and write the result")
@@ -213,6 +227,24 @@ def _apply(args):
     print(f"wrote {dst}: " + ", ".join(f"{k} {tuple(attrs[k].shape)}" for k in attrs))
 
 
+def _repair(args):
+    from .io import read_mesh, write_mesh
+    from .mesh import check_mesh, repair
+
+    src, dst = Path(args.input), Path(args.output)
+    if dst.suffix.lower() not in (".ply", ".npz"):
+        raise MeshError(f"the output must end in .ply or .npz: {dst}")
+    if src.exists() and _same_file(src, dst):
+        raise MeshError(f"refusing to overwrite the input {src}: choose another output")
+    _check_output(dst, args.overwrite)
+    r = repair(read_mesh(src), split=not args.no_split, orient=not args.no_orient,
+               min_component_faces=args.min_component_faces)
+    write_mesh(dst, r.mesh, binary=not args.ascii, overwrite=True)
+    print(f"{src}: {r}")
+    print(check_mesh(r.mesh))
+    print(f"wrote {dst}")
+
+
 def _filters(args):
     from . import filters as flt
 
@@ -330,6 +362,8 @@ def main(argv=None):
                 raise MeshError(f"{args.mesh} is a point cloud ({len(g.point.positions)} points): "
                                 "info checks meshes")
             print(check_mesh(g))
+        elif args.command == "repair":
+            _repair(args)
         elif args.command == "filters":
             _filters(args)
         elif args.command == "apply":

@@ -47,7 +47,7 @@ from scipy.sparse.csgraph import connected_components
 from . import checks
 from .errors import MeshError
 
-__all__ = ["as_arrays", "check_mesh", "MeshReport", "prepare", "Prepared", "face_areas"]
+__all__ = ["as_arrays", "check_mesh", "MeshReport", "prepare", "Prepared", "face_areas", "repair", "Repaired"]
 
 log = logging.getLogger("o3dheat")
 
@@ -261,6 +261,27 @@ def _weld_map(V, F):
     used[F.reshape(-1)] = True
     idx = np.flatnonzero(used)
     rep[idx] = idx[_first_copies(V[idx])]
+    if np.all(rep == np.arange(n)):
+        return rep
+    # copies are welded only where that keeps the surface a manifold: a mesh split on purpose at a
+    # non-manifold edge or vertex (o3dheat.repair) stays split. The corners of one input vertex
+    # stay together; corners of coincident copies join across welded edges with exactly two faces.
+    m = len(F)
+    W = rep[F]  # pairs from the welded faces that stay (not degenerate, first of duplicates)
+    ok = ~_degenerate(W)  # (the faces prepare drops after welding: degenerate, duplicate, zero-area)
+    _, first = _unique_rows(np.sort(W, axis=1), return_index=True)
+    ok &= np.isin(np.arange(m), first)
+    ok[ok] &= ~_zero_area(V, W[ok])
+    faces = np.flatnonzero(ok)
+    u, v = _corner_pairs(W[faces], n)
+    u, v = 3 * faces[u // 3] + u % 3, 3 * faces[v // 3] + v % 3
+    order = np.argsort(F.reshape(-1), kind="stable")  # corners of the same input vertex
+    same = F.reshape(-1)[order[1:]] == F.reshape(-1)[order[:-1]]
+    u, v = np.r_[u, order[1:][same]], np.r_[v, order[:-1][same]]
+    k, lab = _corner_components(m, u, v)
+    smallest = np.full(k, n, np.int64)
+    np.minimum.at(smallest, lab, F.reshape(-1))
+    rep[F.reshape(-1)] = smallest[lab]
     return rep
 
 
@@ -642,3 +663,185 @@ def prepare(mesh, weld=True):
     remap = np.full(n, -1, dtype=np.int64)
     remap[keep] = np.arange(len(keep))
     return Prepared(V[keep], remap[F], keep, n, remap[rep] if welded else None)
+
+
+# ------------------------------------------------------------------------------------- repair
+@dataclass
+class Repaired:
+    """What :func:`repair` made of a mesh.
+
+    Attributes
+    ----------
+    mesh : o3d.t.geometry.TriangleMesh
+        The repaired mesh, with the input's vertex attributes carried over (each output vertex
+        takes the values of its source vertex).
+    source : (r,) int64 ndarray
+        For each output vertex, the input vertex it comes from (a split vertex has several
+        output copies with the same source).
+    welded, dropped_faces, split_vertices, flipped_faces, removed_components : int
+        What was done: duplicate vertices welded; degenerate, duplicate and zero-area faces
+        dropped; extra vertex copies made to split non-manifold edges and vertices; faces flipped
+        to orient each component consistently; small components removed (with their faces).
+    orientable : bool
+        False when some component is non-orientable (a Möbius band): left as it is.
+    """
+
+    mesh: object
+    source: np.ndarray
+    welded: int = 0
+    dropped_faces: int = 0
+    split_vertices: int = 0
+    flipped_faces: int = 0
+    removed_components: int = 0
+    orientable: bool = True
+
+    def __str__(self):
+        done = [f"welded {self.welded} duplicate vertices" if self.welded else "",
+                f"dropped {self.dropped_faces} degenerate/duplicate/zero-area faces" if self.dropped_faces else "",
+                f"split {self.split_vertices} vertex copies off non-manifold edges and vertices"
+                if self.split_vertices else "",
+                f"flipped {self.flipped_faces} faces to a consistent orientation" if self.flipped_faces else "",
+                f"removed {self.removed_components} small components" if self.removed_components else "",
+                "" if self.orientable else "a component is not orientable (left as it is)"]
+        done = [d for d in done if d]
+        return "; ".join(done) if done else "nothing to repair"
+
+
+def _corner_pairs(F, n):
+    """Corners (``3 f + j``) joined across the edges that have exactly two faces: (u, v) arrays,
+    each pair the two corners of one vertex in the two faces of such an edge."""
+    a, b = F, F[:, [1, 2, 0]]
+    key = np.minimum(a, b).reshape(-1) * np.int64(n) + np.maximum(a, b).reshape(-1)  # incidence 3 f + j
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    start = np.r_[True, ks[1:] != ks[:-1]]
+    gid = np.cumsum(start) - 1
+    pair = np.flatnonzero(start & (np.bincount(gid)[gid] == 2))
+    e1, e2 = order[pair], order[pair + 1]
+    ca1, cb1 = e1, 3 * (e1 // 3) + (e1 % 3 + 1) % 3  # corners at the edge's two ends, per face
+    ca2, cb2 = e2, 3 * (e2 // 3) + (e2 % 3 + 1) % 3
+    flat = F.reshape(-1)
+    same = flat[ca1] == flat[ca2]
+    return np.r_[ca1, cb1], np.r_[np.where(same, ca2, cb2), np.where(same, cb2, ca2)]
+
+
+def _corner_components(m, u, v):
+    from scipy.sparse.csgraph import connected_components as components
+
+    g = sp.coo_matrix((np.ones(len(u)), (u, v)), shape=(3 * m, 3 * m))
+    return components(g, directed=False)
+
+
+def _split_fans(F, n):
+    """Split non-manifold edges and vertices: faces meet only across edges with exactly two faces;
+    every vertex gets one copy per fan of faces so connected. Returns (new faces, source vertex of
+    each new vertex); a 2-manifold comes back unchanged (same numbering)."""
+    m = len(F)
+    k, lab = _corner_components(m, *_corner_pairs(F, n))
+    flat = F.reshape(-1)
+    src = np.empty(k, np.int64)
+    src[lab] = flat
+    first = np.full(k, 3 * m, np.int64)
+    np.minimum.at(first, lab, np.arange(3 * m))
+    rank = np.empty(k, np.int64)
+    rank[np.lexsort((first, src))] = np.arange(k)  # numbered by source vertex, then first corner
+    out = np.empty(k, np.int64)
+    out[rank] = src
+    return rank[lab].reshape(m, 3), out
+
+
+def repair(mesh, weld=True, split=True, orient=True, min_component_faces=0):
+    """Repair a mesh for o3dheat: weld duplicate vertices, drop degenerate, duplicate and
+    zero-area faces and unreferenced vertices (the rules of :func:`prepare`), split non-manifold
+    edges and vertices, orient every component consistently, and optionally drop small components.
+
+    Splitting (the usual repair of scans): faces are joined only across edges with exactly two
+    faces; an edge with three or more faces is cut (each of its faces keeps its own copy of the
+    edge), and a vertex whose faces form several fans gets one copy per fan. The result is a
+    2-manifold with boundary that every o3dheat function accepts. Orientation is Open3D's
+    ``orient_triangles`` (breadth-first over the faces); a non-orientable component is left as it is
+    and reported. The copies a split makes have their source's coordinates; o3dheat's welding
+    (:func:`prepare`) joins coincident copies only across edges with exactly two faces, so it
+    leaves them apart and every function sees the repaired mesh as it is (except in rare tangles
+    of overlapping copies of faces: pass ``weld=False`` there).
+
+    Parameters
+    ----------
+    mesh : Open3D mesh (tensor or legacy), (V, F) or a resampling
+    weld, split, orient : bool
+        Steps to run (all by default).
+    min_component_faces : int
+        Components with fewer faces are removed (0 keeps all).
+
+    Returns
+    -------
+    Repaired
+        ``.mesh`` (a new tensor mesh with the input's vertex attributes carried over), ``.source``
+        (input vertex of each output vertex) and what was done (``str()`` says it in one line).
+
+    Examples
+    --------
+    >>> import numpy as np, o3dheat
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1.]])
+    >>> F = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])          # edge 0-1 has three faces
+    >>> r = o3dheat.repair((V, F))
+    >>> str(r), len(r.source), o3dheat.check_mesh(r.mesh).non_manifold_edges
+    ('split 4 vertex copies off non-manifold edges and vertices', 9, 0)
+    """
+    import open3d as o3d
+
+    from . import checks
+
+    min_component_faces = checks.count(min_component_faces, "min_component_faces", minimum=0,
+                                       maximum=np.iinfo(np.int64).max)
+    n_faces_in = len(as_arrays(mesh)[1])
+    p = prepare(mesh, weld=weld)
+    welded = 0 if p.weld is None else int(np.sum(p.weld >= 0) - len(p.keep))
+    V, F, source = p.V, p.F, p.keep
+    dropped = n_faces_in - len(F)
+    split_count = 0
+    if split:
+        F, src = _split_fans(F, len(V))
+        split_count = len(src) - len(V)
+        V, source = V[src], source[src]
+    flipped, orientable = 0, True
+    if orient:
+        legacy = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V),
+                                           o3d.utility.Vector3iVector(F.astype(np.int32)))
+        if legacy.is_edge_manifold(allow_boundary_edges=True):
+            orientable = bool(legacy.orient_triangles())
+            G = np.asarray(legacy.triangles, dtype=np.int64)
+            if orientable:
+                flipped = int(np.sum(np.any(G != F, axis=1)))
+                F = G
+        else:  # split=False on a non-manifold mesh: orientation is not defined
+            orientable = False
+    removed = 0
+    if min_component_faces:
+        from scipy.sparse.csgraph import connected_components as components
+
+        e = np.r_[F[:, [0, 1]], F[:, [1, 2]]]
+        _, lab = components(sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(V),) * 2),
+                            directed=False)
+        per = np.bincount(lab[F[:, 0]])
+        small = per < min_component_faces
+        removed = int(np.sum(small & (per > 0)))
+        F = F[~small[lab[F[:, 0]]]]
+        used = np.zeros(len(V), bool)
+        used[F.reshape(-1)] = True
+        remap = np.cumsum(used) - 1
+        V, source, F = V[used], source[used], remap[F]
+        if len(F) == 0:
+            raise MeshError(f"every component has fewer than {min_component_faces} faces: nothing is left")
+    out = o3d.t.geometry.TriangleMesh()
+    out.vertex.positions = o3d.core.Tensor(np.ascontiguousarray(V))
+    out.triangle.indices = o3d.core.Tensor(np.ascontiguousarray(F))
+    if isinstance(mesh, o3d.geometry.TriangleMesh):
+        mesh = o3d.t.geometry.TriangleMesh.from_legacy(mesh)
+    if isinstance(mesh, o3d.t.geometry.TriangleMesh):
+        for key in mesh.vertex:
+            if key != "positions":
+                out.vertex[key] = o3d.core.Tensor(np.ascontiguousarray(mesh.vertex[key].numpy()[source]))
+    result = Repaired(out, source, welded, dropped, split_count, flipped, removed, orientable)
+    log.info("repair: %s", result)
+    return result

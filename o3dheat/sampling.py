@@ -26,7 +26,7 @@ import numpy as np
 from . import checks
 from .errors import MeshError
 from .fem import _vertex_normals
-from .mesh import _unique_rows, as_arrays
+from .mesh import _unique_rows, as_arrays, repair
 
 __all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
            "reconstruct", "transfer", "nearest", "point_arrays"]
@@ -562,7 +562,9 @@ def reconstruct(cloud, method="poisson", depth=8, neighbours=30, trim=0.0):
     mesh.remove_unreferenced_vertices()
     if len(mesh.triangles) == 0:
         raise MeshError(f"the {method} reconstruction produced no triangles")
-    return as_arrays(mesh)
+    # reconstructions often have non-manifold edges or vertices: split them, so that topology
+    # (critical points, persistence) works on the surface (o3dheat.repair)
+    return as_arrays(repair(mesh).mesh)
 
 
 def _surface_of(source):

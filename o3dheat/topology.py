@@ -161,8 +161,8 @@ class Surface:
         ek, order, new, counts, face_edges = edges
         if np.any(counts > 2):
             raise MeshError(f"{int(np.sum(counts > 2))} edges have more than two faces (non-manifold): "
-                            "topology needs a 2-manifold; repair the mesh first, for example with "
-                            "Open3D's remove_non_manifold_edges()")
+                            "topology needs a 2-manifold: repair the mesh first with o3dheat.repair(mesh) "
+                            "(or `o3dheat repair IN OUT`), which splits such edges")
         m = len(F)
         a = F.reshape(-1)
         self.n = n
@@ -211,8 +211,8 @@ class Surface:
         vert_of[lab] = a
         bad = int(np.sum(np.bincount(vert_of, minlength=self.n) > 1))
         raise MeshError(f"{bad} vertices are non-manifold (their faces form several fans): topology "
-                        "needs a 2-manifold; split them first (for example duplicate each such vertex "
-                        "per fan) or remove the offending faces")
+                        "needs a 2-manifold: repair the mesh first with o3dheat.repair(mesh) (or "
+                        "`o3dheat repair IN OUT`), which gives each fan its own vertex")
 
     @property
     def components(self):
