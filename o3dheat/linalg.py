@@ -34,13 +34,58 @@ import scipy.sparse.linalg as spla
 from . import parallel
 from .errors import SolverError
 
-__all__ = ["BACKENDS", "Factor", "available_backends", "factorize"]
+__all__ = ["BACKENDS", "Factor", "available_backends", "factorize", "available_memory", "OutOfMemory"]
 
 log = logging.getLogger("o3dheat")
 
 BACKENDS = ("cholmod", "cholespy", "superlu")
 _WARNED = set()
 ORDERING = "default"  # CHOLMOD tries AMD, then METIS when the fill is high: best or near-best on meshes
+
+
+class OutOfMemory(SolverError):
+    """The work does not fit in the memory this process may use (estimated before, or reported by
+    CHOLMOD): no other backend is tried, since it would need as much and may crash the process."""
+
+
+def available_memory():
+    """Bytes this process may still allocate: the smaller of the system's available memory
+    (``MemAvailable`` of /proc/meminfo) and what an address-space limit (``ulimit -v``) leaves;
+    None when neither is known.
+
+    Examples
+    --------
+    >>> import o3dheat.linalg as la
+    >>> m = la.available_memory(); m is None or m > 0
+    True
+    """
+    limits = []
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    limits.append(int(line.split()[1]) * 1024)
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft != resource.RLIM_INFINITY:
+            with open("/proc/self/statm") as fh:
+                used = int(fh.read().split()[0]) * resource.getpagesize()
+            limits.append(max(soft - used, 0))
+    except (ImportError, OSError, ValueError):
+        pass
+    return min(limits) if limits else None
+
+
+def check_memory(needed, what, advice):
+    """Raise :class:`OutOfMemory` when ``needed`` bytes exceed what this process may allocate."""
+    have = available_memory()
+    if have is not None and needed > have:
+        raise OutOfMemory(f"{what} needs about {needed / 2**30:.2f} GiB, but only {have / 2**30:.2f} GiB "
+                          f"are available: {advice}")
 
 
 def available_backends():
@@ -234,11 +279,22 @@ class _CholmodFactor:
         c = self._contexts[0][0]
         self._handle.value = lib.cholmod_analyze(ctypes.byref(S), c)
         if not self._handle.value:
-            raise SolverError("CHOLMOD could not analyze the matrix (out of memory?)")
-        ok = lib.cholmod_factorize(ctypes.byref(S), self._handle, c)
-        size, minor = (ctypes.c_size_t.from_address(self._handle.value + 8 * j).value for j in (0, 1))
+            raise OutOfMemory(f"CHOLMOD could not analyze the {n} x {n} matrix (out of memory)")
+        # cholmod_factor begins with n, minor, Perm, ColCount (CHOLMOD 1-5): after the analysis
+        # ColCount holds the column counts of L, so the factor's size is known before it is made
+        size = ctypes.c_size_t.from_address(self._handle.value).value
         if size != n:
             raise OSError("unexpected cholmod_factor layout")
+        counts = ctypes.c_void_p.from_address(self._handle.value + 24).value
+        if counts:
+            lnz = int(np.ctypeslib.as_array(ctypes.cast(counts, ctypes.POINTER(ctypes.c_int32)), shape=(n,))
+                      .astype(np.int64).sum())
+            check_memory(12 * lnz + 64 * n, f"the Cholesky factor of {n} x {n} ({lnz} nonzeros)",
+                         "use a smaller mesh (decimate it) or a machine with more memory")
+        ok = lib.cholmod_factorize(ctypes.byref(S), self._handle, c)
+        minor = ctypes.c_size_t.from_address(self._handle.value + 8).value
+        if not ok and minor >= n:  # no failed pivot: CHOLMOD ran out of memory
+            raise OutOfMemory(f"CHOLMOD ran out of memory factorizing the {n} x {n} matrix: use a smaller mesh")
         if not ok or minor < n:
             raise SolverError(f"CHOLMOD: the matrix is not positive definite (column {minor} of {n})")
 
@@ -280,13 +336,19 @@ def _cholmod(A, mode):
             return _CholmodFactor(lib, A, mode).solve
         except (OverflowError, OSError) as e:  # too big for the int32 interface, another layout
             log.info("CHOLMOD through ctypes not used (%s): scikit-sparse instead", e)
-    from sksparse.cholmod import cholesky
+    from sksparse.cholmod import CholmodOutOfMemoryError, CholmodTooLargeError, cholesky
 
     A = sp.csc_matrix(A)
     try:
-        f = cholesky(A, mode=mode, ordering_method=ORDERING)
-    except Exception:  # a CHOLMOD built without METIS
-        f = cholesky(A, mode=mode)
+        try:
+            f = cholesky(A, mode=mode, ordering_method=ORDERING)
+        except (CholmodOutOfMemoryError, CholmodTooLargeError):
+            raise
+        except Exception:  # a CHOLMOD built without METIS
+            f = cholesky(A, mode=mode)
+    except (CholmodOutOfMemoryError, CholmodTooLargeError) as e:
+        raise OutOfMemory(f"CHOLMOD ran out of memory factorizing the {A.shape[0]} x {A.shape[0]} matrix ({e}): "
+                          "use a smaller mesh") from e
     return f.solve_A
 
 
@@ -366,6 +428,11 @@ def factorize(A, backend="auto", mode="simplicial"):
                 solve = _cholespy(A)
             else:
                 solve = _superlu(A)
+        except OutOfMemory:
+            raise  # another backend would need as much, and may crash the process (cholespy does)
+        except MemoryError as e:
+            raise OutOfMemory(f"{name} ran out of memory factorizing the {A.shape[0]} x {A.shape[0]} "
+                              "matrix: use a smaller mesh") from e
         except Exception as e:  # ImportError or a failed factorization
             errors.append(f"{name}: {type(e).__name__}: {e}")
             if backend == "auto" and name != order[-1]:

@@ -32,7 +32,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from . import fem, parallel
 from .errors import ConvergenceError, MeshError, SolverError
 from .lanczos import block_lanczos, rayleigh_ritz
-from .linalg import factorize
+from .linalg import OutOfMemory, available_memory, check_memory, factorize
 from .mesh import prepare
 
 __all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "default_cache_dir", "shared_eigensolve", "set_cache",
@@ -436,7 +436,11 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         lam, X, used, s, res = cached
         timings = {"assemble": t_asm, "factorize": 0.0, "solve": 0.0, "cache": True}
     else:
-        lam, X, used, s, res, timings = _solve(L, B, k, method, sigma, backend, seed, tol, block)
+        try:
+            lam, X, used, s, res, timings = _solve(L, B, k, method, sigma, backend, seed, tol, block)
+        except MemoryError as e:  # past the estimate: still an error naming the problem, not a crash
+            raise OutOfMemory(f"out of memory solving for {k} eigenpairs on {len(V)} vertices ({e}): ask for "
+                              "fewer eigenpairs, or decimate the mesh") from e
         timings = {"assemble": t_asm, **timings}
         if key:
             _cache_save(cache_dir, key, lam, X, used, s, res)
@@ -469,6 +473,15 @@ def _solve(L, B, k, method, sigma, backend, seed, tol, block):
     method = _choose_method(method, r, k)
     chain = {"lanczos": ["lanczos", "arpack", "dense"], "arpack": ["arpack", "dense"]}.get(method, [method])
     chain = [m for m in chain if m != "dense" or r <= DENSE_LIMIT_N]
+    if chain[0] == "dense":
+        check_memory(3 * 8 * r * r, f"a dense eigensolve of {r} vertices", "ask for fewer eigenpairs (iterative)")
+    else:  # the Lanczos basis of 2k + block vectors and its temporaries (measured: 6.4-8 KB/vertex, k = 300)
+        check_memory(int(1.6 * 8 * r * (2 * k + block)) + 40 * (L.nnz + B.nnz),
+                     f"the eigensolve of {k} eigenpairs on {r} vertices",
+                     "ask for fewer eigenpairs, or decimate the mesh")
+        free = available_memory()
+        if free is not None and 3 * 8 * r * r > free:
+            chain = [m for m in chain if m != "dense"]
     for i, m in enumerate(chain):
         try:
             return _solve_by(L, B, k, m, sigma, backend, seed, tol, block)

@@ -137,3 +137,39 @@ def test_the_input_matrix_is_not_reordered():
     np.testing.assert_array_equal(A.indices, before[0])
     np.testing.assert_array_equal(A.data, before[1])
     np.testing.assert_allclose(A @ x, 1.0, rtol=1e-12)
+
+
+def test_memory_is_checked_before_factorizing_and_out_of_memory_never_falls_back(monkeypatch):
+    import scipy.sparse as sp
+
+    import o3dheat.linalg as la
+
+    A = sp.diags([np.full(99, -1.0), np.full(100, 3.0), np.full(99, -1.0)], [-1, 0, 1], format="csc")
+    monkeypatch.setattr(la, "available_memory", lambda: 1000)  # bytes
+    if la._library() is not None:
+        with pytest.raises(la.OutOfMemory, match="Cholesky factor .* needs about"):
+            la.factorize(A, backend="cholmod")
+    tried = []
+    monkeypatch.setattr(la, "_cholespy", lambda A: tried.append("cholespy"))
+
+    def oom(A, mode):
+        raise la.OutOfMemory("CHOLMOD ran out of memory")
+
+    monkeypatch.setattr(la, "_cholmod", oom)
+    with pytest.raises(la.OutOfMemory):
+        la.factorize(A)
+    assert tried == []  # cholespy would need as much memory, and crashes when it does not get it
+    monkeypatch.setattr(la, "_cholmod", lambda A, mode: (_ for _ in ()).throw(MemoryError()))
+    with pytest.raises(la.OutOfMemory, match="ran out of memory"):
+        la.factorize(A)
+    assert tried == []
+
+
+def test_available_memory_sees_an_address_space_limit():
+    import subprocess
+    import sys
+
+    code = ("import resource, o3dheat.linalg as la; resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30));"
+            "m = la.available_memory(); print(m is not None and m < 4 * 2**30)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.stdout.strip() == "True", out.stderr[-500:]

@@ -449,3 +449,15 @@ def test_one_cache_bounded_cleaned_and_in_the_platform_folder(tmp_path, monkeypa
     S._MEMORY.clear()
     a = S.shared_eigensolve(V, F, k=6)
     assert o3dheat.filters.shared_spectrum(V, F, k=6) is a and len(S._MEMORY) == 1
+
+
+def test_eigensolve_refuses_what_does_not_fit_in_memory(monkeypatch, irregular_mesh):
+    import o3dheat.linalg as la
+    import o3dheat.spectrum as S
+
+    monkeypatch.setattr(la, "available_memory", lambda: 10_000)  # bytes
+    monkeypatch.setattr(S, "available_memory", lambda: 10_000)
+    with pytest.raises(la.OutOfMemory, match="eigenpairs on .* vertices needs about .* GiB"):
+        o3dheat.eigensolve(irregular_mesh, k=20, method="lanczos")
+    with pytest.raises(la.OutOfMemory, match="dense eigensolve"):
+        o3dheat.eigensolve(irregular_mesh, k=20, method="dense")
