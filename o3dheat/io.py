@@ -32,6 +32,7 @@ import logging
 import os
 import re
 import tempfile
+from glob import escape as glob_escape
 from pathlib import Path
 
 import numpy as np
@@ -289,6 +290,7 @@ def atomic_write(path, write):
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise MeshError(f"cannot write {path}: folder {folder} does not exist")
+    _remove_stale(folder, f".{path.name}.")
     try:
         fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
     except OSError as e:
@@ -302,6 +304,21 @@ def atomic_write(path, write):
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def _remove_stale(folder, prefix, age=3600.0):
+    """Remove the temporary files ``{prefix}*.tmp`` that a killed writer left (older than an hour:
+    a live writer finishes sooner), so an interrupted run leaves no litter after the next one."""
+    import time
+
+    now = time.time()
+    for tmp in Path(folder).glob(f"{glob_escape(prefix)}*.tmp"):
+        try:
+            if now - tmp.stat().st_mtime > age:
+                tmp.unlink()
+                log.info("removed %s, left by an interrupted write", tmp)
+        except OSError:
+            pass
 
 
 def atomic_write_text(path, text):

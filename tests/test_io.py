@@ -58,6 +58,22 @@ def test_write_is_atomic(tmp_path, mesh, monkeypatch):
     assert [x.name for x in tmp_path.iterdir()] == ["m.ply"]
 
 
+def test_temporary_files_of_a_killed_write_are_removed_by_the_next(tmp_path, mesh):
+    import os
+    import time
+
+    old = tmp_path / ".m.ply.abc123.tmp"  # what kill -9 during a write leaves
+    old.write_bytes(b"partial")
+    os.utime(old, (time.time() - 7200,) * 2)
+    live = tmp_path / ".m.ply.def456.tmp"  # another writer at work right now
+    live.write_bytes(b"partial")
+    other = tmp_path / ".n.ply.abc123.tmp"  # another target's: not ours to judge
+    other.write_bytes(b"x")
+    os.utime(other, (time.time() - 7200,) * 2)
+    write_mesh(tmp_path / "m.ply", mesh)
+    assert not old.exists() and live.exists() and other.exists()
+
+
 def test_bad_paths(tmp_path, mesh):
     with pytest.raises(o3dheat.MeshError, match="no such file"):
         read_mesh(tmp_path / "missing.ply")
