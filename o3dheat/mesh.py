@@ -92,6 +92,31 @@ def _degenerate(F):
     return (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
 
 
+def _shaped(mesh):
+    """(V (n, 3) float64 copy, F (m, 3) int64 copy) with their shapes and types checked (the
+    checks every function shares; contents -- finiteness, index range -- are checked by callers)."""
+    pair = _pair(mesh)
+    try:
+        V = np.array(pair[0], dtype=np.float64, copy=True)
+        F_in = np.asarray(pair[1])
+    except (TypeError, ValueError) as e:
+        raise MeshError(f"vertices and faces must be numeric arrays ({e})") from None
+    if V.size == 0:
+        V = V.reshape(0, 3)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise MeshError(f"vertices must have shape (n, 3), got {V.shape}")
+    if F_in.size == 0:
+        return V, np.zeros((0, 3), np.int64)
+    if F_in.ndim != 2 or F_in.shape[1] != 3:
+        raise MeshError(f"faces must have shape (m, 3) (triangles), got {F_in.shape}")
+    if not (np.issubdtype(F_in.dtype, np.integer) or np.issubdtype(F_in.dtype, np.floating)):
+        raise MeshError(f"face indices must be integers, got dtype {F_in.dtype}")
+    if not np.issubdtype(F_in.dtype, np.integer):
+        if not np.all(np.isfinite(F_in)) or np.any(F_in != np.round(F_in)):
+            raise MeshError("face indices must be integers")
+    return V, F_in.astype(np.int64, copy=True)
+
+
 def as_arrays(mesh):
     """Return the vertices and faces of a mesh as checked numpy arrays.
 
@@ -119,21 +144,11 @@ def as_arrays(mesh):
     >>> V.shape[1], F.shape[1], V.dtype.name, F.dtype.name
     (3, 3, 'float64', 'int64')
     """
-    pair = _pair(mesh)
-    V = np.array(pair[0], dtype=np.float64, copy=True)
-    F_in = np.asarray(pair[1])
-    if V.size == 0:
+    V, F = _shaped(mesh)
+    if len(V) == 0:
         raise MeshError("the mesh is empty (no vertices)")
-    if V.ndim != 2 or V.shape[1] != 3:
-        raise MeshError(f"vertices must have shape (n, 3), got {V.shape}")
-    if F_in.size == 0:
+    if len(F) == 0:
         raise MeshError("the mesh has no faces: o3dheat needs a triangle mesh, not a point set")
-    if F_in.ndim != 2 or F_in.shape[1] != 3:
-        raise MeshError(f"faces must have shape (m, 3) (triangles), got {F_in.shape}")
-    if not np.issubdtype(F_in.dtype, np.integer):
-        if not np.all(np.isfinite(F_in)) or np.any(F_in != np.round(F_in)):
-            raise MeshError("face indices must be integers")
-    F = F_in.astype(np.int64, copy=True)
     bad = ~np.all(np.isfinite(V), axis=1)
     if bad.any():
         raise MeshError(f"{int(bad.sum())} vertices have NaN or infinite coordinates "
@@ -408,9 +423,7 @@ def check_mesh(mesh, weld=True):
     >>> r.welded_vertices, r.components, r.genus, r.ok
     (3000, 1, 1.0, False)
     """
-    pair = _pair(mesh)
-    V = np.asarray(pair[0], dtype=np.float64).reshape(-1, 3)
-    F = np.asarray(pair[1]).reshape(-1, 3).astype(np.int64)
+    V, F = _shaped(mesh)  # shapes and types as every function checks them; contents are counted
     n, m = len(V), len(F)
     problems = []
     nonfinite = int(np.sum(~np.all(np.isfinite(V), axis=1)))

@@ -368,3 +368,16 @@ def test_cli_repair(tmp_path, capsys):
     assert main(["repair", str(src), str(out)]) == 2  # exists
     assert main(["repair", str(src), str(src), "--overwrite"]) == 2  # never the input
     assert "input" in capsys.readouterr().err and src.read_bytes() == before
+
+
+@pytest.mark.parametrize("V, F, message", [
+    (np.random.default_rng(0).random((10, 2)), np.array([[0, 1, 2]]), "shape \\(n, 3\\)"),
+    (np.random.default_rng(0).random((10, 3)), np.array([[0, 1, 2, 3]]), "shape \\(m, 3\\)"),
+    (np.random.default_rng(0).random((10, 3)), np.array([[0, 1, 2.5]]), "integers"),
+    (np.random.default_rng(0).random((10, 3)), np.array([["a", "b", "c"]]), "integers"),
+    ("a", "b", "numeric"),
+])
+def test_check_mesh_validates_shapes_exactly_as_eigensolve(V, F, message):
+    for fn in (o3dheat.check_mesh, lambda m: o3dheat.eigensolve(m, k=2), o3dheat.as_arrays):
+        with pytest.raises(o3dheat.MeshError, match=message):
+            fn((V, F))
