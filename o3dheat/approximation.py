@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import checks
 from .errors import MeshError
 from .kernel import HeatKernel
 from .topology import Surface, critical_points
@@ -64,9 +65,7 @@ def project(f, A):
     >>> project([1.0, 2.0, 3.0], [0, 2]).tolist()
     [1.0, 0.0, 3.0]
     """
-    f = np.array(f, dtype=np.float64)
-    if f.ndim not in (1, 2):
-        raise MeshError(f"f must have shape (n,) or (n, c), got {f.shape}")
+    f = checks.field(f).copy()
     mask = _vertex_set(A, len(f))
     f[~mask] = 0.0
     return f

@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import MeshError
 
-__all__ = ["values", "count"]
+__all__ = ["values", "field", "count"]
 
 
 def values(x):
@@ -34,6 +34,39 @@ def values(x):
         except Exception as e:  # e.g. a tensor on a device numpy cannot read
             raise MeshError(f"cannot read the {type(x).__name__} as numbers ({e}): pass a numpy array") from e
     return x
+
+
+def field(f, n=None, name="f", ndim=(1, 2)):
+    """A per-vertex field as a float64 array, checked: numeric (bool included), ``n`` rows (one
+    value per vertex, when ``n`` is given), ``ndim`` in the allowed ones, every value finite. The one
+    field check of every module, with one message style.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from o3dheat.checks import field
+    >>> field([1, 2, 3], 3).dtype.name
+    'float64'
+    >>> field([1.0, np.nan, 3.0], 3)
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: f has 1 NaN or infinite values (first at vertex 1)
+    """
+    arr = np.asarray(values(f))
+    if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
+        raise MeshError(f"{name} must be numeric, got dtype {arr.dtype}")
+    if np.issubdtype(arr.dtype, np.complexfloating):
+        raise MeshError(f"{name} must be real, got dtype {arr.dtype}")
+    arr = arr.astype(np.float64)
+    if arr.ndim not in ndim or (n is not None and len(arr) != n):
+        rows = "n" if n is None else n
+        shapes = " or ".join({1: f"({rows},)", 2: f"({rows}, c)", 3: f"({rows}, c, d)"}[d] for d in ndim)
+        raise MeshError(f"{name} must have shape {shapes} (one value per vertex), got {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        first = int(np.flatnonzero(bad.reshape(len(arr), -1).any(axis=1))[0])
+        raise MeshError(f"{name} has {int(bad.sum())} NaN or infinite values (first at vertex {first})")
+    return arr
 
 
 def count(x, name, minimum=1, maximum=1_000_000):

@@ -80,11 +80,7 @@ def diffuse(mesh, f, dt, steps, scheme="explicit", mass="consistent", backend="a
         raise MeshError(f"dt must be a positive number, got {dt!r}")
     steps = checks.count(steps, "steps", minimum=0)
     prep = prepare(mesh)
-    f = np.asarray(checks.values(f), dtype=np.float64)
-    if f.ndim not in (1, 2) or f.shape[0] != prep.n_input:
-        raise MeshError(f"f must have shape ({prep.n_input},) or ({prep.n_input}, c), got {f.shape}")
-    if not np.all(np.isfinite(f)):
-        raise MeshError("f contains NaN or infinite values")
+    f = checks.field(f, prep.n_input)
     F = prep.restrict(f).copy()
     L = fem.stiffness_matrix(prep.V, prep.F)
     r = len(prep.V)

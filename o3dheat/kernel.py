@@ -193,13 +193,7 @@ class HeatKernel:
         return np.asarray(self._weigh(self.spectrum.eigenvectors))
 
     def _field(self, f, name="f"):
-        f = np.asarray(checks.values(f), dtype=np.float64)
-        if f.ndim not in (1, 2) or f.shape[0] != self.n:
-            raise MeshError(f"{name} must have shape ({self.n},) or ({self.n}, c) (one value per vertex), "
-                            f"got {f.shape}")
-        if not np.all(np.isfinite(f)):
-            raise MeshError(f"{name} contains NaN or infinite values ({int(np.sum(~np.isfinite(f)))} entries)")
-        return f
+        return checks.field(f, self.n, name)
 
     @staticmethod
     def _times(t):

@@ -97,12 +97,7 @@ def _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title, S
 
 
 def _field_values(f, n):
-    f = np.asarray(checks.values(f), dtype=np.float64)
-    if f.shape[0] != n:
-        raise MeshError(f"the field has {f.shape[0]} values for {n} vertices")
-    if not np.all(np.isfinite(f)):
-        raise MeshError("the field has NaN or infinite values")
-    return f
+    return checks.field(f, n, "the field")
 
 
 def field(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cmap="coolwarm",

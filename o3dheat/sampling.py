@@ -607,11 +607,7 @@ def transfer(values, source, target):
         pts = np.asarray(target, dtype=np.float64)
     else:
         pts = _surface_of(target)[0]
-    vals = np.asarray(checks.values(values), dtype=np.float64)
-    if vals.shape[0] != len(V):
-        raise MeshError(f"values have {vals.shape[0]} rows for {len(V)} source vertices")
-    if not np.all(np.isfinite(vals)):
-        raise MeshError(f"values contain {int(np.sum(~np.isfinite(vals)))} NaN or infinite entries")
+    vals = checks.field(values, len(V), "values (one row per source vertex)")
     # Open3D's closest-point scene is float32: centre and scale both point sets on the source's
     # bounding box first (georeferenced scans sit 1e6 units from the origin, where float32 steps
     # are 0.5 units); the barycentric coordinates are then computed in float64

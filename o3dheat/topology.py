@@ -223,18 +223,11 @@ class Surface:
 
     def field(self, f, name="f"):
         """``f`` as a checked (n,) float64 array (MeshError on a wrong shape or non-finite values)."""
-        arr = np.asarray(checks.values(f))
-        if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
-            raise MeshError(f"{name} must be numeric, got dtype {arr.dtype}")
-        arr = arr.astype(np.float64)
+        arr = checks.field(f, self.n, name)
         if arr.ndim == 2 and arr.shape[1] == 1:
             arr = arr[:, 0]
-        if arr.ndim != 1 or len(arr) != self.n:
+        if arr.ndim != 1:
             raise MeshError(f"{name} must have one value per vertex, shape ({self.n},), got {arr.shape}")
-        bad = ~np.isfinite(arr)
-        if bad.any():
-            raise MeshError(f"{name} has {int(bad.sum())} NaN or infinite values (first at vertex "
-                            f"{int(np.flatnonzero(bad)[0])})")
         rep = self.representative
         if rep is not None:  # welded: the mean over the copies of each vertex, on every copy, as
             # the first copy's value plus the mean deviation (exact when the copies agree)
