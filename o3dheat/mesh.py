@@ -363,10 +363,23 @@ def _boundary_loops(bE):
 
 
 def _non_manifold_vertices(F, n):
-    """Vertices whose incident faces form more than one edge-connected fan."""
+    """Number of vertices whose incident faces form more than one edge-connected fan."""
+    return int(np.sum(_non_manifold_vertex_mask(F, n)))
+
+
+def _non_manifold_edge_faces(F, n):
+    """(m,) bool: the faces that have an edge shared by three or more faces."""
+    a, b = F, F[:, [1, 2, 0]]
+    key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)  # (m, 3) edge keys
+    uniq, inv, counts = np.unique(key.reshape(-1), return_inverse=True, return_counts=True)
+    return (counts[inv.reshape(-1)] > 2).reshape(-1, 3).any(axis=1)
+
+
+def _non_manifold_vertex_mask(F, n):
+    """(n,) bool: vertices whose incident faces form more than one edge-connected fan."""
     m = len(F)
     if m == 0:
-        return 0
+        return np.zeros(n, bool)
     # corner c = (face, slot); two corners at the same vertex are adjacent when their faces share
     # the edge (vertex, other) -- join corners through the "half-edge key" (vertex, other vertex).
     vert = F.reshape(-1)
@@ -381,8 +394,7 @@ def _non_manifold_vertices(F, n):
     g = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(3 * m, 3 * m))
     _, lab = connected_components(g, directed=False)
     fans = np.unique(np.stack([vert, lab], axis=1), axis=0)
-    per_vertex = np.bincount(fans[:, 0], minlength=n)
-    return int(np.sum(per_vertex > 1))
+    return np.bincount(fans[:, 0], minlength=n) > 1
 
 
 def check_mesh(mesh, weld=True):

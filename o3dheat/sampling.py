@@ -26,7 +26,8 @@ import numpy as np
 from . import checks
 from .errors import MeshError
 from .fem import _vertex_normals
-from .mesh import _unique_rows, as_arrays, repair
+from .mesh import (_degenerate, _non_manifold_edge_faces, _non_manifold_vertex_mask, _unique_rows, as_arrays,
+                   repair)
 
 __all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
            "reconstruct", "transfer", "nearest", "point_arrays"]
@@ -84,31 +85,18 @@ def _check_result(V, F, kind, params):
 def _clean(V, F, vertex_map=None):
     """A 2-manifold: degenerate and duplicate faces dropped, then the faces at non-manifold edges
     and vertices (rare after a decimation or remeshing, fatal to the topology), unreferenced
-    vertices removed; ``vertex_map`` (source -> V) is carried along."""
-    import open3d as o3d
-
-    from .topology import Surface
-
+    vertices removed; ``vertex_map`` (source -> V) is carried along. (Dropping, not splitting as
+    :func:`o3dheat.repair` does, keeps the vertex map one-to-one.)"""
     F = np.asarray(F, dtype=np.int64)
-    F = F[~((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2]))]
+    F = F[~_degenerate(F)]
     _, first = _unique_rows(np.sort(F, axis=1), return_index=True)
     F = F[np.sort(first)]
     n0 = len(F)
-    for _ in range(10):
-        try:
-            Surface.from_faces(len(V), F)
+    for _ in range(10):  # dropping faces can leave new non-manifold vertices: a few rounds
+        drop = _non_manifold_edge_faces(F, len(V)) | _non_manifold_vertex_mask(F, len(V))[F].any(axis=1)
+        if not drop.any():
             break
-        except MeshError:
-            m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F.astype(np.int32)))
-            bad_v = np.asarray(m.get_non_manifold_vertices())
-            bad_e = np.asarray(m.get_non_manifold_edges(allow_boundary_edges=True))
-            drop = np.isin(F, bad_v).any(axis=1)
-            if len(bad_e):
-                keys = set(map(tuple, np.sort(bad_e, axis=1).tolist()))
-                for j in range(3):
-                    e = np.sort(F[:, [j, (j + 1) % 3]], axis=1)
-                    drop |= np.array([tuple(x) in keys for x in e.tolist()])
-            F = F[~drop]
+        F = F[~drop]
     if len(F) < n0:
         log.info("%d faces removed to keep a 2-manifold", n0 - len(F))
     used = np.zeros(len(V), bool)
