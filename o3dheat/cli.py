@@ -124,6 +124,7 @@ def _parser():
     g.add_argument("--noise", type=float, default=0.1, help="noise added to the height, relative (default: %(default)s)")
     g.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
     g.add_argument("--up", default="z", choices=["x", "y", "z"], help="axis drawn vertical (default: %(default)s)")
+    g.add_argument("--overwrite", action="store_true", help="allow replacing the figures of an earlier run")
     return p
 
 
@@ -282,6 +283,12 @@ def _figure(args):
     from .io import read_mesh
     from .plot import paper_figures
 
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise MeshError(f"{out} is a file: -o takes a folder")
+    if (out / "index.md").exists() and not args.overwrite:
+        raise MeshError(f"{out} holds the figures of an earlier run: add --overwrite to replace them, or "
+                        "choose another folder")
     mesh = read_mesh(args.input)
     field = None
     if args.attribute:

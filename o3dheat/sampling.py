@@ -218,6 +218,7 @@ def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None):
     >>> bool(0.07 < np.median(e) < 0.13)
     True
     """
+    iterations = checks.count(iterations, "iterations", maximum=1000)
     V, F = as_arrays(mesh)
     if target_edge_length is not None and edge_factor is not None:
         raise MeshError("give target_edge_length or edge_factor, not both")
@@ -267,6 +268,7 @@ def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6):
     >>> bool(np.sum(~left) > 10 * np.sum(left))       # the fine half holds most vertices
     True
     """
+    iterations = checks.count(iterations, "iterations", maximum=1000)
     V, F = as_arrays(mesh)
     if axis not in (0, 1, 2):
         raise MeshError(f"axis must be 0, 1 or 2, got {axis}")

@@ -70,3 +70,13 @@ def test_values():
     a = np.arange(3)
     assert values(a) is a
     np.testing.assert_array_equal(values(o3d.core.Tensor(a)), a)
+
+
+def test_absurd_remeshing_iterations_are_refused(sphere):
+    m, _ = sphere
+    from o3dheat.sampling import anisotropic, remesh
+
+    with pytest.raises(o3dheat.MeshError, match="iterations must be an integer from 1 to 1000"):
+        remesh(m, iterations=10**9)
+    with pytest.raises(o3dheat.MeshError, match="iterations"):
+        anisotropic(m, iterations=10**9)

@@ -168,8 +168,13 @@ def test_cli_spectrum_and_figure(tmp_path, sphere_ply, capsys):
     figs = tmp_path / "figs"
     assert main(["figure", str(sphere_ply), "-o", str(figs), "-k", "30", "--up", "y"]) == 0
     assert (figs / "index.md").exists() and len(list(figs.glob("*.png"))) == 8
-    assert main(["figure", str(sphere_ply), "-o", str(figs), "--attribute", "nope"]) == 2
+    assert main(["figure", str(sphere_ply), "-o", str(figs), "--attribute", "nope", "--overwrite"]) == 2
     assert "no vertex attribute" in capsys.readouterr().err
+    before = (figs / "index.md").read_bytes()
+    assert main(["figure", str(sphere_ply), "-o", str(figs), "-k", "30"]) == 2  # an earlier run's figures
+    assert "earlier run" in capsys.readouterr().err and (figs / "index.md").read_bytes() == before
+    assert main(["figure", str(sphere_ply), "-o", str(sphere_ply)]) == 2
+    assert "is a file" in capsys.readouterr().err
 
 
 def test_every_subcommand_has_examples():
