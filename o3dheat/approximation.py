@@ -28,24 +28,6 @@ log = logging.getLogger("o3dheat")
 STOPS = (None, "linf", "critical_points")
 
 
-def _vertex_set(A, n):
-    """A (indices or boolean mask) as a boolean mask of length n."""
-    arr = np.asarray(A)
-    if arr.dtype == bool:
-        if arr.shape != (n,):
-            raise MeshError(f"a boolean vertex mask must have shape ({n},), got {arr.shape}")
-        return arr.copy()
-    if arr.size == 0:
-        return np.zeros(n, bool)
-    if not np.issubdtype(arr.dtype, np.integer) or arr.ndim != 1:
-        raise MeshError("A must be a 1-D sequence of vertex indices or a boolean mask over the vertices")
-    if arr.min() < 0 or arr.max() >= n:
-        raise MeshError(f"vertex index out of range [0, {n - 1}] in A")
-    mask = np.zeros(n, bool)
-    mask[arr] = True
-    return mask
-
-
 def project(f, A):
     """The projection ``pr_A``: f on the vertex set A, 0 elsewhere (§3.3).
 
@@ -66,7 +48,7 @@ def project(f, A):
     [1.0, 0.0, 3.0]
     """
     f = checks.field(f).copy()
-    mask = _vertex_set(A, len(f))
+    mask = checks.vertex_set(A, len(f))
     f[~mask] = 0.0
     return f
 
@@ -196,7 +178,7 @@ def scale_space(kernel, f, scales=None, stop=None, tol=None):
     f = kernel._field(f)
     if f.ndim != 1:
         raise MeshError("scale_space takes one scalar field of shape (n,)")
-    t = kernel.scales() if scales is None else kernel._times(scales)
+    t = kernel.scales() if scales is None else checks.times(scales)
     t = np.atleast_1d(t).astype(np.float64)
     if t.size == 0 or np.any(np.diff(t) <= 0):
         raise MeshError("scales must be a non-empty, strictly increasing sequence of times")

@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import MeshError
 
-__all__ = ["values", "field", "count"]
+__all__ = ["values", "field", "count", "times", "vertex_set"]
 
 
 def values(x):
@@ -85,3 +85,49 @@ def count(x, name, minimum=1, maximum=1_000_000):
     if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or not minimum <= x <= maximum:
         raise MeshError(f"{name} must be an integer from {minimum} to {maximum}, got {x!r}")
     return int(x)
+
+
+def times(t):
+    """Times as a float64 scalar or 1-D array: finite and >= 0 (the backward heat equation is
+    ill-posed).
+
+    Examples
+    --------
+    >>> from o3dheat.checks import times
+    >>> times([0.1, 1]).tolist()
+    [0.1, 1.0]
+    """
+    try:
+        t_arr = np.asarray(values(t), dtype=np.float64)
+    except (TypeError, ValueError):
+        raise MeshError(f"t must be a number or a 1-D array of times, got {t!r}") from None
+    if t_arr.ndim > 1:
+        raise MeshError(f"t must be a number or a 1-D array of times, got shape {t_arr.shape}")
+    if not np.all(np.isfinite(t_arr)) or np.any(t_arr < 0):
+        raise MeshError(f"times must be finite and >= 0 (the backward heat equation is ill-posed), got {t}")
+    return t_arr
+
+
+def vertex_set(A, n, name="A"):
+    """A vertex set (indices, repeats allowed, or a boolean mask) as a boolean mask of length n.
+
+    Examples
+    --------
+    >>> from o3dheat.checks import vertex_set
+    >>> vertex_set([0, 2, 2], 4).tolist()
+    [True, False, True, False]
+    """
+    arr = np.asarray(values(A))
+    if arr.dtype == bool:
+        if arr.shape != (n,):
+            raise MeshError(f"a boolean vertex mask must have shape ({n},), got {arr.shape}")
+        return arr.copy()
+    if arr.size == 0:
+        return np.zeros(n, bool)
+    if not np.issubdtype(arr.dtype, np.integer) or arr.ndim != 1:
+        raise MeshError(f"{name} must be a 1-D sequence of vertex indices or a boolean mask over the vertices")
+    if arr.min() < 0 or arr.max() >= n:
+        raise MeshError(f"vertex index out of range [0, {n - 1}] in {name}")
+    mask = np.zeros(n, bool)
+    mask[arr] = True
+    return mask

@@ -195,15 +195,6 @@ class HeatKernel:
     def _field(self, f, name="f"):
         return checks.field(f, self.n, name)
 
-    @staticmethod
-    def _times(t):
-        t_arr = np.asarray(t, dtype=np.float64)
-        if t_arr.ndim > 1:
-            raise MeshError(f"t must be a number or a 1-D array of times, got shape {t_arr.shape}")
-        if not np.all(np.isfinite(t_arr)) or np.any(t_arr < 0):
-            raise MeshError(f"times must be finite and >= 0 (the backward heat equation is ill-posed), got {t}")
-        return t_arr
-
     def filter_factors(self, t):
         """Filter factors ``exp(-φ(λ_i) t / 2)``.
 
@@ -216,7 +207,7 @@ class HeatKernel:
         -------
         (k,) or (k, T) float64 ndarray
         """
-        t_arr = self._times(t)
+        t_arr = checks.times(t)
         with np.errstate(over="ignore"):
             D = np.exp(-0.5 * np.multiply.outer(self.rates, t_arr))
         if not np.all(np.isfinite(D)):
@@ -413,7 +404,7 @@ class HeatKernel:
             raise MeshError(f"i must be a vertex index or a 1-D sequence of them, got {i!r}")
         if np.any(idx < 0) or np.any(idx >= self.n):
             raise MeshError(f"vertex index out of range [0, {self.n - 1}]: {i!r}")
-        t = self._times(t)
+        t = checks.times(t)
         if t.ndim:
             raise MeshError("canonic_basis takes one time t")
         D = self.filter_factors(t)
@@ -444,7 +435,7 @@ class HeatKernel:
             When ``exp(λ_k t / 2)`` overflows or exceeds 1e15 (no digit would be right).
         """
         f = self._field(f)
-        t = self._times(t)
+        t = checks.times(t)
         if t.ndim:
             raise MeshError("inverse takes one time t")
         expo = 0.5 * float(np.max(self.rates)) * float(t)
@@ -481,7 +472,7 @@ class HeatKernel:
         r = f - X @ (X.T @ (B @ f))
         nr = np.sqrt(max(float(r @ (B @ r)), 0.0)) if f.ndim == 1 else np.sqrt(np.einsum("ij,ij->j", r, B @ r))
         nf = np.sqrt(float(f @ (B @ f))) if f.ndim == 1 else np.sqrt(np.einsum("ij,ij->j", f, B @ f))
-        decay = np.exp(-0.5 * float(np.max(self.rates)) * self._times(t))
+        decay = np.exp(-0.5 * float(np.max(self.rates)) * checks.times(t))
         with np.errstate(invalid="ignore", divide="ignore"):
             rel = np.where(nf > 0, nr / np.where(nf > 0, nf, 1), 0.0)
         return np.multiply.outer(rel, decay) if np.ndim(rel) else float(rel) * decay
@@ -503,7 +494,7 @@ class HeatKernel:
         -------
         int
         """
-        t = float(self._times(t))
+        t = float(checks.times(t))
         if t <= 0 or not (0 < tol < 1):
             raise MeshError("suggest_k needs t > 0 and 0 < tol < 1")
         need = 2 * np.log(1 / tol) / t  # the rate λ_k must reach
