@@ -77,7 +77,9 @@ def _parser():
     p.add_argument("-v", "--verbose", action="store_true", help="log what happens")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     d = _sub(sub, "demo", "run the demo on the embedded bunny")
-    d.add_argument("--out", default="o3dheat-demo/bunny_heat.ply", help="output PLY (default: %(default)s)")
+    d.add_argument("--out", help="output PLY (default: o3dheat-demo/bunny_heat.ply, or bunny_heat-N.ply when "
+                                 "that exists: an earlier result is never replaced)")
+    d.add_argument("--overwrite", action="store_true", help="allow replacing an existing --out")
     d.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
     d.add_argument("--reduction", type=float, default=0.6, help="decimation fraction (default: %(default)s)")
     d.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
@@ -359,7 +361,14 @@ def main(argv=None):
         if args.command == "demo":
             from .demo import run
 
-            run(out=args.out, k=args.k, reduction=args.reduction, seed=args.seed)
+            out = args.out
+            if out is None:  # the default name, or the next free one: a rerun keeps earlier results
+                out, i = Path("o3dheat-demo") / "bunny_heat.ply", 1
+                while out.exists():
+                    out, i = Path("o3dheat-demo") / f"bunny_heat-{i}.ply", i + 1
+            elif Path(out).exists() and not args.overwrite:
+                raise MeshError(f"{out} exists: add --overwrite to replace it")
+            run(out=out, k=args.k, reduction=args.reduction, seed=args.seed)
         elif args.command == "info":
             from .io import read_geometry
             from .mesh import check_mesh

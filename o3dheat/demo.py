@@ -218,7 +218,7 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     result.vertex.colors = o3d.core.Tensor(colormap(smooth[:, 4]).astype(np.float32))
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    write_mesh(out, result)
+    write_mesh(out, result)  # run() is asked for this path: the command keeps earlier results apart
     timings["write"] = time.perf_counter() - t0
 
     echo(f"o3dheat demo: {name}, resampled to {len(V)} vertices / {len(F)} faces "

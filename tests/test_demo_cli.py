@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -181,3 +182,17 @@ def test_every_subcommand_has_examples():
     for cmd in ("demo", "info", "filters", "apply", "spectrum", "figure"):
         r = subprocess.run([sys.executable, "-m", "o3dheat.cli", cmd, "--help"], capture_output=True, text=True)
         assert r.returncode == 0 and "examples:" in r.stdout, cmd
+
+
+def test_cli_demo_never_replaces_an_earlier_result(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    import o3dheat.demo as demo
+
+    calls = []
+    monkeypatch.setattr(demo, "run", lambda out, **kw: (calls.append(str(out)), Path(out).parent.mkdir(exist_ok=True),
+                                                        Path(out).write_text("result")))
+    assert main(["demo"]) == 0 and main(["demo"]) == 0
+    assert calls == ["o3dheat-demo/bunny_heat.ply", "o3dheat-demo/bunny_heat-1.ply"]
+    assert main(["demo", "--out", "o3dheat-demo/bunny_heat.ply"]) == 2
+    assert "exists" in capsys.readouterr().err
+    assert main(["demo", "--out", "o3dheat-demo/bunny_heat.ply", "--overwrite"]) == 0
