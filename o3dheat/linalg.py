@@ -5,13 +5,19 @@ many ``(n, c)``. With ``backend="auto"`` the first backend that is installed and
 each fallback is logged as a warning naming the reason, and the factor says which backend it is.
 
 * ``"cholmod"``: CHOLMOD of the system SuiteSparse, the library scikit-sparse is built against.
-  Simplicial LDLᵀ by default, which on Debian's reference-BLAS build solves 1.6-2.5x faster than
-  supernodal. scikit-sparse's ``solve_A`` holds Python's GIL, so the columns of a block cannot be
-  solved concurrently through it; o3dheat therefore calls the very library scikit-sparse loaded
-  through ``ctypes`` (which releases the GIL) and solves the columns of a block on several threads
-  (1.8-2x faster block solves on 2 cores, bit-identical results: each column is solved alone).
-  When that binding is not possible (no ``libcholmod`` found, an unexpected ``cholmod_common``
-  layout, a failed self-check) scikit-sparse's own ``cholesky`` is used, single-threaded.
+  scikit-sparse's ``solve_A`` holds Python's GIL, so the columns of a block cannot be solved
+  concurrently through it; o3dheat therefore calls the very library scikit-sparse loaded through
+  ``ctypes`` (which releases the GIL) and solves the columns of a block on several threads
+  (1.8-2x faster block solves on 2 cores, bit-identical results: each group of columns is solved
+  alone). The factorization is supernodal from :data:`SUPERNODAL_MIN_N` rows (BLAS-3 on dense
+  blocks: 2x faster at 1M rows even on the reference BLAS, 3.5x with OpenBLAS, which
+  ``scripts/setup.sh`` installs), run with the BLAS on one thread so that the factor does not
+  depend on the machine's core count, then converted to a simplicial LLᵀ for the threaded solves
+  (faster per column than the supernodal solve); smaller matrices get a simplicial LDLᵀ directly.
+  When the binding is not possible, or fails at any point but for a matrix that is not positive
+  definite or a lack of memory (no ``libcholmod`` found, an unexpected struct layout, a failed
+  self-check or ``cholmod_start``, a failed solve), scikit-sparse's own ``cholesky`` takes over,
+  single-threaded, with a warning naming the reason.
 * ``"cholespy"``: the pip wheel of cholespy (CHOLMOD bundled), for machines without
   ``libsuitesparse-dev``.
 * ``"superlu"``: scipy's SuperLU (always there; an LU, slower and more memory).
@@ -21,6 +27,7 @@ The number of threads that solve the columns of a block is :func:`o3dheat.parall
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import ctypes.util
 import logging
@@ -41,6 +48,8 @@ log = logging.getLogger("o3dheat")
 BACKENDS = ("cholmod", "cholespy", "superlu")
 _WARNED = set()
 ORDERING = "default"  # CHOLMOD tries AMD, then METIS when the fill is high: best or near-best on meshes
+MODES = ("auto", "simplicial", "supernodal")
+SUPERNODAL_MIN_N = 100_000  # "auto": supernodal from here (measured in scripts/bench_spectrum.py)
 
 
 class OutOfMemory(SolverError):
@@ -172,9 +181,44 @@ class _Dense(ctypes.Structure):  # cholmod_dense, column-major with leading dime
 
 _DENSE_P = ctypes.POINTER(_Dense)
 _REAL, _DOUBLE, _INT, _LOWER, _SYS_A = 1, 0, 0, -1, 0  # CHOLMOD_REAL, _DOUBLE, _INT, stype, CHOLMOD_A
-_MODES = {"simplicial": 0, "auto": 1, "supernodal": 2}  # Common->supernodal
+_MODES = {"simplicial": 0, "supernodal": 2}  # Common->supernodal: CHOLMOD_SIMPLICIAL, CHOLMOD_SUPERNODAL
+
+# The fields of CHOLMOD's structs that the binding reads or writes, by byte offset, for the CHOLMOD
+# that the scikit-sparse pin of pyproject.toml (0.4.16) builds against: SuiteSparse 5.x (CHOLMOD 3)
+# on LP64; the same offsets hold in CHOLMOD 2 to 5. Each is checked against a known value before it
+# is trusted (the last column); a mismatch means another layout: scikit-sparse's own solver is used.
+#
+#   struct.field                     type     offset  checked against
+#   cholmod_common.supernodal_switch double      40   40.0, its default after cholmod_start
+#   cholmod_common.supernodal        int         48   1 (CHOLMOD_AUTO), its default; then written
+#   cholmod_common.print             int        144   3, its default; then written 0 (silent)
+#   cholmod_factor.n                 size_t       0   the order of the matrix, after the analysis
+#   cholmod_factor.minor             size_t       8   n after a successful factorization
+#   cholmod_factor.ColCount          int32 *     24   read only when .n checked out (memory estimate)
+_OFFSETS = {
+    "common.supernodal_switch": (40, ctypes.c_double, 40.0),
+    "common.supernodal": (48, ctypes.c_int, 1),
+    "common.print": (144, ctypes.c_int, 3),
+    "factor.n": (0, ctypes.c_size_t, None),
+    "factor.minor": (8, ctypes.c_size_t, None),
+    "factor.ColCount": (24, ctypes.c_void_p, None),
+}
 _COMMON_BYTES = 1 << 14  # cholmod_common: 2664 bytes in CHOLMOD 3 (SuiteSparse 5.12); room to spare
 _LIB = None  # the bound library, or False when binding is not possible
+
+
+class _BindingError(OSError):
+    """The ctypes binding cannot be used (another layout, a failed start or self-check or solve)."""
+
+
+class _NotPositiveDefinite(SolverError):
+    """A property of the matrix: no other CHOLMOD call would factorize it."""
+
+
+def _field(address, name):
+    """The ctypes object of a struct field of the table above, at a struct's address."""
+    offset, ctype, _ = _OFFSETS[name]
+    return ctype.from_address(address + offset)
 
 
 def _library():
@@ -202,44 +246,49 @@ def _bind():
         pass
     path = path or ctypes.util.find_library("cholmod")
     if not path:
-        raise OSError("libcholmod not found")
+        raise _BindingError("libcholmod not found")
     lib = ctypes.CDLL(path)  # CDLL (not PyDLL): the GIL is released during every call
-    vp = ctypes.c_void_p
+    vp, ci = ctypes.c_void_p, ctypes.c_int
     lib.cholmod_start.argtypes = lib.cholmod_finish.argtypes = [vp]
     lib.cholmod_analyze.argtypes = [ctypes.POINTER(_Sparse), vp]
     lib.cholmod_analyze.restype = vp
     lib.cholmod_factorize.argtypes = [ctypes.POINTER(_Sparse), vp, vp]
-    lib.cholmod_solve2.argtypes = [ctypes.c_int, vp, ctypes.POINTER(_Dense), vp, ctypes.POINTER(_DENSE_P),
+    lib.cholmod_change_factor.argtypes = [ci, ci, ci, ci, ci, vp, vp]
+    lib.cholmod_solve2.argtypes = [ci, vp, ctypes.POINTER(_Dense), vp, ctypes.POINTER(_DENSE_P),
                                    vp, ctypes.POINTER(_DENSE_P), ctypes.POINTER(_DENSE_P), vp]
     lib.cholmod_free_factor.argtypes = [ctypes.POINTER(vp), vp]
     lib.cholmod_free_dense.argtypes = [ctypes.POINTER(_DENSE_P), vp]
-    # self-check on small matrices: factor, a two-thread solve, a detected zero pivot
+    _self_check(lib)
+    return lib
+
+
+def _self_check(lib):
+    """Factor small matrices both ways, solve on two threads, detect a zero pivot; raises
+    :class:`_BindingError` when anything is off."""
     A = sp.diags([np.full(6, -1.0), np.arange(2.0, 9.0), np.full(6, -1.0)], [-1, 0, 1], format="csc")
     x = np.arange(14.0).reshape(7, 2)
-    if not np.allclose(_CholmodFactor(lib, A, "simplicial").solve(A @ x, 2), x, rtol=1e-12, atol=1e-12):
-        raise OSError("self-check failed")
+    for mode in _MODES:
+        if not np.allclose(_CholmodFactor(lib, A, mode).solve(A @ x, 2), x, rtol=1e-12, atol=1e-12):
+            raise _BindingError(f"self-check failed ({mode})")
     try:
         _CholmodFactor(lib, sp.diags([1.0, 0.0, 2.0], format="csc"), "simplicial")
-    except SolverError:
-        return lib
-    raise OSError("self-check failed: a singular matrix was not detected")
+    except _NotPositiveDefinite:
+        return
+    raise _BindingError("self-check failed: a singular matrix was not detected")
 
 
 def _common(lib, mode):
     """A started cholmod_common (a buffer) in the given factorization mode, messages off."""
     c = ctypes.create_string_buffer(_COMMON_BYTES)
     if not lib.cholmod_start(c):
-        raise SolverError("cholmod_start failed")
-    # the first fields are dbound, grow0, grow1, grow2, maxrank, supernodal_switch (default 40),
-    # supernodal (default CHOLMOD_AUTO = 1), ... print (default 3) at byte 144 in CHOLMOD 2-5
-    switch, flag = ctypes.c_double.from_buffer(c, 40).value, ctypes.c_int.from_buffer(c, 48)
-    if switch != 40.0 or flag.value != 1:
-        lib.cholmod_finish(c)
-        raise OSError("unexpected cholmod_common layout")
-    flag.value = _MODES[mode]
-    verbosity = ctypes.c_int.from_buffer(c, 144)
-    if verbosity.value == 3:
-        verbosity.value = 0  # failures are reported as SolverError, not printed
+        raise _BindingError("cholmod_start failed")
+    address = ctypes.addressof(c)
+    for name in ("common.supernodal_switch", "common.supernodal", "common.print"):
+        if _field(address, name).value != _OFFSETS[name][2]:
+            lib.cholmod_finish(c)
+            raise _BindingError(f"unexpected cholmod_common layout ({name})")
+    _field(address, "common.supernodal").value = _MODES[mode]
+    _field(address, "common.print").value = 0  # failures are reported as SolverError, not printed
     return c
 
 
@@ -258,7 +307,8 @@ class _CholmodFactor:
     """A CHOLMOD factor held through ctypes. ``solve(b, threads)`` splits the columns of ``b``
     into contiguous groups solved concurrently, each thread with its own cholmod_common and
     workspace (the factor is only read); the result does not depend on the number of threads.
-    Freed with the object."""
+    A supernodal factor is made with the BLAS on one thread (its rounding would otherwise depend
+    on the thread count), then converted to a simplicial LLᵀ. Freed with the object."""
 
     def __init__(self, lib, A, mode):
         A = sp.csc_matrix(A)
@@ -280,23 +330,31 @@ class _CholmodFactor:
         self._handle.value = lib.cholmod_analyze(ctypes.byref(S), c)
         if not self._handle.value:
             raise OutOfMemory(f"CHOLMOD could not analyze the {n} x {n} matrix (out of memory)")
-        # cholmod_factor begins with n, minor, Perm, ColCount (CHOLMOD 1-5): after the analysis
-        # ColCount holds the column counts of L, so the factor's size is known before it is made
-        size = ctypes.c_size_t.from_address(self._handle.value).value
-        if size != n:
-            raise OSError("unexpected cholmod_factor layout")
-        counts = ctypes.c_void_p.from_address(self._handle.value + 24).value
+        # after the analysis ColCount holds the column counts of L: the factor's size is known
+        # before it is made (a supernodal factor stores up to about twice as many entries, and is
+        # converted to a simplicial one while it exists: three times, counted once more for safety)
+        if _field(self._handle.value, "factor.n").value != n:
+            raise _BindingError("unexpected cholmod_factor layout (n)")
+        counts = _field(self._handle.value, "factor.ColCount").value
         if counts:
             lnz = int(np.ctypeslib.as_array(ctypes.cast(counts, ctypes.POINTER(ctypes.c_int32)), shape=(n,))
                       .astype(np.int64).sum())
-            check_memory(12 * lnz + 64 * n, f"the Cholesky factor of {n} x {n} ({lnz} nonzeros)",
+            check_memory((12 if mode == "simplicial" else 40) * lnz + 64 * n,
+                         f"the Cholesky factor of {n} x {n} ({lnz} nonzeros)",
                          "use a smaller mesh (decimate it) or a machine with more memory")
-        ok = lib.cholmod_factorize(ctypes.byref(S), self._handle, c)
-        minor = ctypes.c_size_t.from_address(self._handle.value + 8).value
+        if mode == "supernodal":
+            with parallel.blas_one_thread():
+                ok = lib.cholmod_factorize(ctypes.byref(S), self._handle, c)
+        else:
+            ok = lib.cholmod_factorize(ctypes.byref(S), self._handle, c)
+        minor = _field(self._handle.value, "factor.minor").value
         if not ok and minor >= n:  # no failed pivot: CHOLMOD ran out of memory
             raise OutOfMemory(f"CHOLMOD ran out of memory factorizing the {n} x {n} matrix: use a smaller mesh")
         if not ok or minor < n:
-            raise SolverError(f"CHOLMOD: the matrix is not positive definite (column {minor} of {n})")
+            raise _NotPositiveDefinite(f"CHOLMOD: the matrix is not positive definite (column {minor} of {n})")
+        # supernodal -> simplicial LLᵀ (packed, monotonic): CHOLMOD_REAL, to_ll, to_super, packed, monotonic
+        if mode == "supernodal" and not lib.cholmod_change_factor(_REAL, 1, 0, 1, 1, self._handle, c):
+            raise OutOfMemory(f"CHOLMOD ran out of memory converting the factor of the {n} x {n} matrix")
 
     def _solve_columns(self, j, b, out):
         c, X, Y, E = self._contexts[j]
@@ -305,7 +363,7 @@ class _CholmodFactor:
         D = _Dense(rows, cols, rows * cols, rows, b.ctypes.data, None, _REAL, _DOUBLE)
         if not self._lib.cholmod_solve2(_SYS_A, self._handle, ctypes.byref(D), None, ctypes.byref(X),
                                         None, ctypes.byref(Y), ctypes.byref(E), c):
-            raise SolverError("CHOLMOD solve failed (out of memory?)")
+            raise _BindingError("CHOLMOD solve failed")
         d = X.contents.d
         out[...] = np.ctypeslib.as_array(ctypes.cast(X.contents.x, ctypes.POINTER(ctypes.c_double)),
                                          shape=(cols, d)).T[:rows]
@@ -329,23 +387,64 @@ class _CholmodFactor:
         return out
 
 
+def _auto_mode(mode, n):
+    if mode not in MODES:
+        raise SolverError(f"unknown mode {mode!r}: use one of {MODES}")
+    if mode == "auto":
+        return "supernodal" if n >= SUPERNODAL_MIN_N else "simplicial"
+    return mode
+
+
 def _cholmod(A, mode):
     lib = _library()
     if lib is not None:
         try:
-            return _CholmodFactor(lib, A, mode).solve
-        except (OverflowError, OSError) as e:  # too big for the int32 interface, another layout
-            log.info("CHOLMOD through ctypes not used (%s): scikit-sparse instead", e)
+            return _fallback_solve(_CholmodFactor(lib, A, mode), A, mode)
+        except (OutOfMemory, _NotPositiveDefinite):
+            raise  # a property of the matrix or of the machine: scikit-sparse would fail alike
+        except Exception as e:  # noqa: BLE001 - too big for the int32 interface, another layout...
+            _warn_binding(e)
+    return _sksparse(A, mode)
+
+
+def _warn_binding(e):
+    reason = f"{type(e).__name__}: {e}"
+    level = logging.INFO if ("binding", reason) in _WARNED else logging.WARNING
+    _WARNED.add(("binding", reason))
+    log.log(level, "CHOLMOD through ctypes failed (%s): scikit-sparse's own solver instead (one thread)", reason)
+
+
+def _fallback_solve(factor, A, mode):
+    """``factor.solve``, replaced for good by scikit-sparse's solver when a solve fails in the
+    binding (the matrix is kept for that: about a tenth of the factor's memory)."""
+    state = {"solve": None}
+
+    def solve(b):
+        if state["solve"] is None:
+            try:
+                return factor.solve(b)
+            except (OutOfMemory, MemoryError):
+                raise
+            except Exception as e:  # noqa: BLE001 - any failure of the binding
+                _warn_binding(e)
+                state["solve"] = _sksparse(A, mode)
+        return state["solve"](b)
+
+    return solve
+
+
+def _sksparse(A, mode):
     from sksparse.cholmod import CholmodOutOfMemoryError, CholmodTooLargeError, cholesky
 
     A = sp.csc_matrix(A)
     try:
-        try:
-            f = cholesky(A, mode=mode, ordering_method=ORDERING)
-        except (CholmodOutOfMemoryError, CholmodTooLargeError):
-            raise
-        except Exception:  # a CHOLMOD built without METIS
-            f = cholesky(A, mode=mode)
+        with parallel.blas_one_thread() if mode == "supernodal" else contextlib.nullcontext():
+            try:
+                f = cholesky(A, mode=mode, ordering_method=ORDERING)
+            except (CholmodOutOfMemoryError, CholmodTooLargeError):
+                raise
+            except Exception:  # a CHOLMOD built without METIS
+                f = cholesky(A, mode=mode)
     except (CholmodOutOfMemoryError, CholmodTooLargeError) as e:
         raise OutOfMemory(f"CHOLMOD ran out of memory factorizing the {A.shape[0]} x {A.shape[0]} matrix ({e}): "
                           "use a smaller mesh") from e
@@ -378,7 +477,7 @@ def _superlu(A):
     return lu.solve
 
 
-def factorize(A, backend="auto", mode="simplicial"):
+def factorize(A, backend="auto", mode="auto"):
     """Factorize a sparse symmetric positive definite matrix once, for many solves.
 
     Parameters
@@ -387,8 +486,12 @@ def factorize(A, backend="auto", mode="simplicial"):
         Symmetric positive definite (for example ``L - sigma B`` with ``sigma < 0``).
     backend : {"auto", "cholmod", "cholespy", "superlu"}
         "auto" tries them in that order and logs a warning at each fallback.
-    mode : {"simplicial", "supernodal", "auto"}
-        CHOLMOD's factorization mode (ignored by the other backends).
+    mode : {"auto", "simplicial", "supernodal"}
+        CHOLMOD's factorization (ignored by the other backends): "auto" is supernodal from
+        :data:`SUPERNODAL_MIN_N` rows, simplicial below. Supernodal factors are made with the BLAS
+        on one thread (reproducible whatever the core count; when another Python thread holds
+        o3dheat's BLAS limit at that moment, the BLAS keeps its threads and the last bits may
+        differ) and solved as simplicial LLᵀ (see the module docstring).
 
     Returns
     -------
@@ -416,6 +519,7 @@ def factorize(A, backend="auto", mode="simplicial"):
     A = sp.csc_matrix(A, dtype=np.float64)
     if A.shape[0] != A.shape[1]:
         raise SolverError(f"the matrix to factorize must be square, got shape {A.shape}")
+    mode = _auto_mode(mode, A.shape[0])
     if not np.all(np.isfinite(A.data)):
         raise SolverError("the matrix to factorize has NaN or infinite entries: check the mesh "
                           "coordinates and the shift")

@@ -31,11 +31,12 @@ def test_the_ctypes_binding_is_used():
 
 
 @needs_cholmod
-def test_threaded_solves_are_bit_identical_and_agree_with_scikit_sparse(spd):
+@pytest.mark.parametrize("mode", ["simplicial", "supernodal"])
+def test_threaded_solves_are_bit_identical_and_agree_with_scikit_sparse(spd, mode):
     from sksparse.cholmod import cholesky
 
     b = np.random.default_rng(0).standard_normal((spd.shape[0], 8))
-    f = la.factorize(spd, backend="cholmod")
+    f = la.factorize(spd, backend="cholmod", mode=mode)
     assert f.backend == "cholmod"
     out = {}
     b = np.concatenate([b, b[:, :3]], axis=1)  # 11 columns: groups of 4, 4, 3
@@ -56,6 +57,85 @@ def test_threaded_solves_are_bit_identical_and_agree_with_scikit_sparse(spd):
 def test_modes(spd, mode):
     b = np.ones((spd.shape[0], 3))
     np.testing.assert_allclose(spd @ la.factorize(spd, backend="cholmod", mode=mode).solve(b), b, atol=1e-9)
+
+
+def test_auto_mode_is_supernodal_for_large_matrices_only():
+    assert la._auto_mode("auto", la.SUPERNODAL_MIN_N - 1) == "simplicial"
+    assert la._auto_mode("auto", la.SUPERNODAL_MIN_N) == "supernodal"
+    assert la._auto_mode("simplicial", 10**7) == "simplicial"
+    with pytest.raises(SolverError, match="unknown mode"):
+        la.factorize(sp.identity(3, format="csc"), mode="fast")
+
+
+def test_the_offsets_table_names_every_field_the_binding_touches():
+    import ctypes
+    import inspect
+    import re
+
+    src = inspect.getsource(la)
+    used = set(re.findall(r'_field\([^,]+, "([a-zA-Z_.]+)"\)', src)) | set(re.findall(r'"(common\.[a-z_]+)"', src))
+    assert used == set(la._OFFSETS)  # every field read or written is in the table, and only those
+    for name, (offset, ctype, _) in la._OFFSETS.items():
+        row = re.search(rf"#\s+cholmod_{re.escape(name)}\s+\S+( \*)?\s+(\d+)", src)
+        assert row and int(row.group(2)) == offset, name  # the commented table says the same offset
+        assert offset % ctypes.alignment(ctype) == 0
+
+
+def _bound_or_skip():
+    lib = la._library()
+    if lib is None:
+        pytest.skip("no ctypes binding here")
+    return lib
+
+
+@needs_cholmod
+def test_an_unexpected_layout_is_detected_and_scikit_sparse_takes_over(spd, monkeypatch, caplog):
+    _bound_or_skip()
+    b = np.ones((spd.shape[0], 3))
+    # a cholmod_common whose supernodal_switch is not where the table says (another CHOLMOD)
+    offset, ctype, _ = la._OFFSETS["common.supernodal_switch"]
+    monkeypatch.setitem(la._OFFSETS, "common.supernodal_switch", (offset + 8, ctype, 40.0))
+    monkeypatch.setattr(la, "_LIB", None)  # bind again: the self-check sees the layout
+    assert la._library() is None
+    f = la.factorize(spd, backend="cholmod")
+    assert f.backend == "cholmod"
+    np.testing.assert_allclose(spd @ f.solve(b), b, atol=1e-9)
+
+
+@needs_cholmod
+@pytest.mark.parametrize("failure", ["cholmod_start", "layout", "solve"])
+def test_any_binding_failure_falls_back_to_scikit_sparse(spd, monkeypatch, caplog, failure):
+    lib = _bound_or_skip()
+    b = np.random.default_rng(2).standard_normal((spd.shape[0], 5))
+    expected = la.factorize(spd, backend="cholmod").solve(b)
+    if failure == "cholmod_start":  # the library is bound, but a start fails later (a SolverError before)
+        monkeypatch.setattr(lib, "cholmod_start", lambda c: 0)
+    elif failure == "layout":
+        monkeypatch.setitem(la._OFFSETS, "common.print", (144, la._OFFSETS["common.print"][1], 7))
+    else:
+        def broken(self, j, b, out):
+            raise la._BindingError("CHOLMOD solve failed")
+
+        monkeypatch.setattr(la._CholmodFactor, "_solve_columns", broken)
+    la._WARNED.clear()
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        f = la.factorize(spd, backend="cholmod")
+        got = f.solve(b)
+        again = f.solve(b)  # the fallback stays
+    assert f.backend == "cholmod"
+    np.testing.assert_allclose(got, expected, rtol=1e-10, atol=1e-12)
+    np.testing.assert_array_equal(got, again)
+    assert "scikit-sparse's own solver" in caplog.text
+
+
+@needs_cholmod
+def test_a_matrix_that_is_not_positive_definite_does_not_retry_the_binding(monkeypatch):
+    _bound_or_skip()
+    called = []
+    monkeypatch.setattr(la, "_sksparse", lambda A, mode: called.append(mode))
+    with pytest.raises(SolverError, match="not positive definite"):
+        la.factorize(sp.diags([1.0, 0.0, 2.0, 3.0], format="csc"), backend="cholmod")
+    assert called == []
 
 
 @needs_cholmod
