@@ -35,7 +35,7 @@ from .lanczos import block_lanczos, rayleigh_ritz
 from .linalg import OutOfMemory, available_memory, check_memory, factorize
 from .mesh import prepare
 
-__all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "default_cache_dir", "shared_eigensolve", "set_cache",
+__all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "peak_memory", "default_cache_dir", "shared_eigensolve", "set_cache",
            "memoized", "cache_max_bytes"]
 
 log = logging.getLogger("o3dheat")
@@ -462,6 +462,35 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
                     faces=prep.keep[F])
 
 
+def peak_memory(n, k=100, block=8):
+    """Estimated peak memory of an iterative :func:`eigensolve`, in bytes.
+
+    The Lanczos basis (``max(2k, k + 4 block) + block`` vectors of ``n`` float64) plus 2 KiB per
+    vertex for the Cholesky factor, the operators and the blocks of vectors, as measured on a mesh
+    of 1M vertices (``scripts/bench_spectrum.py``: resident memory added while solving peaked at
+    3.4 GiB for k = 100, 6.4 GiB for k = 300). A mesh fits when this is below the
+    memory available; eigensolve refuses with :class:`o3dheat.linalg.OutOfMemory` otherwise.
+
+    Parameters
+    ----------
+    n : int
+        Vertices.
+    k, block : int
+        As for :func:`eigensolve`.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> round(peak_memory(1_000_000, 100) / 2**30, 1), round(peak_memory(1_000_000, 300) / 2**30, 1)
+    (3.5, 6.4)
+    """
+    basis = min(n, max(2 * k, k + 4 * block)) + block
+    return int(n * (8 * basis + 2048))
+
+
 def _solve(L, B, k, method, sigma, backend, seed, tol, block):
     """Smallest k eigenpairs of L x = λ B x: (λ, X B-orthonormal with fixed signs, backend, σ,
     residuals, timings).
@@ -475,8 +504,8 @@ def _solve(L, B, k, method, sigma, backend, seed, tol, block):
     chain = [m for m in chain if m != "dense" or r <= DENSE_LIMIT_N]
     if chain[0] == "dense":
         check_memory(3 * 8 * r * r, f"a dense eigensolve of {r} vertices", "ask for fewer eigenpairs (iterative)")
-    else:  # the Lanczos basis of 2k + block vectors and its temporaries (measured: 6.4-8 KB/vertex, k = 300)
-        check_memory(int(1.6 * 8 * r * (2 * k + block)) + 40 * (L.nnz + B.nnz),
+    else:
+        check_memory(peak_memory(r, k, block),
                      f"the eigensolve of {k} eigenpairs on {r} vertices",
                      "ask for fewer eigenpairs, or decimate the mesh")
         free = available_memory()
