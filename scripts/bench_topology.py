@@ -2,24 +2,48 @@
 """Benchmark: PL critical points and persistence, o3dheat against gudhi's lower-star persistence,
 measured in one run on the same meshes and fields.
 
-o3dheat times start from ``(V, F)`` arrays and include checking the mesh (edges, boundary,
-manifoldness). gudhi's time includes listing the edges (numpy), inserting vertices, edges and
-triangles with their lower-star values (``SimplexTree.insert_batch``) and ``compute_persistence``.
-Both diagrams are compared (finite pairs of positive persistence, dimensions 0 and 1) and the
-table says whether they agree.
+What is timed (best of ``--repeat`` runs each, in seconds):
 
-    .venv/bin/python scripts/bench_topology.py                       # 100k and 1M vertices
+* **Surface build**: ``topology.Surface((V, F))`` from arrays: welding check, edges, boundary,
+  manifoldness, vertex adjacency. Built once per mesh, reused by every field.
+* **critical**: ``critical_points(surface, f)``, field to result, Surface prebuilt;
+  **critical (V, F)**: ``critical_points((V, F), f)``, the Surface built inside (a one-off call).
+* **persistence**: ``persistence(surface, f)``, field to diagram, Surface prebuilt.
+* **gudhi**: ``SimplexTree`` + ``insert_batch`` of the vertices, edges and triangles with their
+  lower-star values + ``compute_persistence`` (Z/2) + reading the intervals of dimensions 0 and
+  1. The edge list is made once per mesh outside the timing, as the Surface is; computing the
+  lower-star values from f is inside (field-dependent work, as in o3dheat).
+
+Both diagrams are compared (finite pairs of positive persistence, dimensions 0 and 1; o3dheat's
+dimension 1 read as sublevel (saddle, maximum) pairs) and the table says whether they agree. The
+ratio ``gudhi / o3dheat`` divides gudhi by o3dheat's persistence with the Surface prebuilt;
+``gudhi / (build + o3dheat)`` charges the whole Surface build to that one field.
+
+Memory (``--memory``, on by default): peak bytes allocated during one call (tracemalloc, which
+sees numpy's and numba's allocations), beyond what the mesh and Surface already hold, per vertex;
+the Surface's own size is given per vertex too. At 10M vertices gudhi is skipped (``--gudhi-max``).
+
+The compiled loops (numba) are compiled once and cached beside the module: the first table
+reports, in fresh processes, the first call with an empty cache (compiling) and with the cache
+(loading).
+
+    .venv/bin/python scripts/bench_topology.py                        # 100k and 1M vertices
     .venv/bin/python scripts/bench_topology.py --sizes 100000 --repeat 3
+    .venv/bin/python scripts/bench_topology.py --sizes 10000000 --meshes torus --repeat 1  # slow
 
-Needs gudhi (``pip install -e .[dev]`` or ``.[bench]``). Prints a Markdown table; the ratio is
-gudhi time / o3dheat persistence time (higher = o3dheat faster).
+Needs gudhi (``pip install -e .[dev]`` or ``.[bench]``). Prints Markdown tables.
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
+import os
+import subprocess
 import sys
+import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_spectrum import bunny, torus  # noqa: E402  (the same meshes as the spectrum benchmark)
 
 import o3dheat  # noqa: E402
+from o3dheat.topology import Surface  # noqa: E402
 
 
 def fields(V, seed=0):
@@ -38,11 +63,15 @@ def fields(V, seed=0):
     return {"smooth": smooth, "noisy": smooth + noise}
 
 
-def gudhi_persistence(F, f):
+def gudhi_edges(F):
+    """The mesh's edges for gudhi, listed once per mesh (outside gudhi's timing)."""
+    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [0, 2]]]), axis=1)
+    return np.unique(E, axis=0), np.unique(F)
+
+
+def gudhi_persistence(F, E, used, f):
     import gudhi
 
-    used = np.unique(F)
-    E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [0, 2]]]), axis=1), axis=0)
     st = gudhi.SimplexTree()
     st.insert_batch(used[None, :], f[used])
     st.insert_batch(E.T, f[E].max(axis=1))
@@ -66,34 +95,107 @@ def best_of(fn, repeat):
     return best, out
 
 
+def peak_bytes(fn):
+    """Peak bytes allocated while ``fn`` runs, beyond what was allocated before (tracemalloc)."""
+    gc.collect()
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        fn()
+        return tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+
+
+def surface_bytes(S):
+    return sum(a.nbytes for a in vars(S).values() if isinstance(a, np.ndarray) and a is not S.V)
+
+
+FIRST_CALL = """
+import time
+t0 = time.perf_counter()
+import numpy as np, o3dheat
+t1 = time.perf_counter()
+V, F = np.random.default_rng(0).random((4, 3)), np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [0, 2, 3]])
+o3dheat.persistence((V, F), V[:, 0]); o3dheat.critical_points((V, F), V[:, 0])
+print(t1 - t0, time.perf_counter() - t1)
+"""
+
+
+def first_call():
+    """(import s, first call s) in fresh processes: empty numba cache, then the filled cache."""
+    out = []
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        for _ in range(2):
+            r = subprocess.run([sys.executable, "-c", FIRST_CALL], env=env, capture_output=True, text=True,
+                               check=True)
+            out.append(tuple(float(x) for x in r.stdout.split()))
+    r = subprocess.run([sys.executable, "-c", FIRST_CALL], capture_output=True, text=True, check=True)
+    out.append(tuple(float(x) for x in r.stdout.split()))
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--sizes", default="100000,1000000", help="comma-separated vertex counts")
+    ap.add_argument("--sizes", default="100000,1000000", help="comma-separated vertex counts (10000000: slow)")
     ap.add_argument("--meshes", default="torus,bunny")
-    ap.add_argument("--repeat", type=int, default=1, help="best of this many runs per timing")
+    ap.add_argument("--repeat", type=int, default=3, help="best of this many runs per timing")
     ap.add_argument("--no-gudhi", action="store_true")
+    ap.add_argument("--gudhi-max", type=int, default=2_000_000, help="skip gudhi above this many vertices")
+    ap.add_argument("--no-memory", action="store_true", help="skip the tracemalloc peak measurements")
+    ap.add_argument("--no-first-call", action="store_true", help="skip the compile / cache-load table")
     args = ap.parse_args(argv)
     makers = {"torus": torus, "bunny": bunny}
-    rows = []
-    print("| mesh | vertices | field | critical points (min, saddle, max) | o3dheat critical s | "
-          "o3dheat persistence s | gudhi s | gudhi / o3dheat | diagrams agree |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    if not args.no_first_call:
+        (i0, c0), (i1, c1), (i2, c2) = first_call()
+        print("| first call in a fresh process (4-vertex mesh: Surface, persistence, critical points) | "
+              "import o3dheat s | first call s |")
+        print("|---|---|---|")
+        print(f"| empty numba cache (compiles every loop) | {i0:.2f} | {c0:.2f} |")
+        print(f"| numba cache filled by the previous run | {i1:.2f} | {c1:.2f} |")
+        print(f"| the installation's cache (o3dheat/__pycache__) | {i2:.2f} | {c2:.2f} |")
+        print(flush=True)
+    cols = ["mesh", "vertices", "field", "critical points (min, saddle, max)", "Surface build s",
+            "critical s", "critical (V, F) s", "persistence s", "gudhi s", "gudhi / o3dheat",
+            "gudhi / (build + o3dheat)", "diagrams agree"]
+    if not args.no_memory:
+        cols += ["Surface B/vertex", "build peak B/vertex", "critical peak B/vertex", "persistence peak B/vertex"]
+    print("| " + " | ".join(cols) + " |")
+    print("|" + "---|" * len(cols))
     for name in args.meshes.split(","):
         for n in (int(s) for s in args.sizes.split(",")):
             V, F = makers[name](n)
+            t_s, S = best_of(lambda: Surface((V, F)), args.repeat)
+            gudhi = not args.no_gudhi and len(V) <= args.gudhi_max
+            if gudhi:
+                E, used = gudhi_edges(F)
+            mem = []
+            if not args.no_memory:
+                del S
+                b_build = peak_bytes(lambda: Surface((V, F)))
+                S = Surface((V, F))
+                mem = [surface_bytes(S) / len(V), b_build / len(V)]
             for label, f in fields(V).items():
-                t_cp, cp = best_of(lambda: o3dheat.critical_points((V, F), f), args.repeat)
-                t_p, d = best_of(lambda: o3dheat.persistence((V, F), f), args.repeat)
-                if args.no_gudhi:
-                    t_g, agree = float("nan"), "-"
-                else:
-                    t_g, g = best_of(lambda: gudhi_persistence(F, f), args.repeat)
+                t_cp, cp = best_of(lambda: o3dheat.critical_points(S, f), args.repeat)
+                t_cpv, _ = best_of(lambda: o3dheat.critical_points((V, F), f), min(args.repeat, 2))
+                t_p, d = best_of(lambda: o3dheat.persistence(S, f), args.repeat)
+                if gudhi:
+                    t_g, g = best_of(lambda: gudhi_persistence(F, E, used, f), min(args.repeat, 2))
                     ours = [finite(d.intervals(0)), finite(d.intervals(1)[:, ::-1])]
                     agree = "yes" if all(np.array_equal(a, finite(b)) for a, b in zip(ours, g)) else "NO"
-                row = (f"| {name} | {len(V)} | {label} | {cp.counts} | {t_cp:.2f} | {t_p:.2f} | "
-                       f"{t_g:.2f} | {t_g / t_p:.1f}x | {agree} |")
-                print(row, flush=True)
-                rows.append(row)
+                    ratios = f"{t_g:.2f} | {t_g / t_p:.1f}x | {t_g / (t_s + t_p):.1f}x | {agree}"
+                else:
+                    ratios = "- | - | - | -"
+                extra = ""
+                if not args.no_memory:
+                    m_cp = peak_bytes(lambda: o3dheat.critical_points(S, f)) / len(V)
+                    m_p = peak_bytes(lambda: o3dheat.persistence(S, f)) / len(V)
+                    extra = " | " + " | ".join(f"{x:.0f}" for x in mem + [m_cp, m_p])
+                print(f"| {name} | {len(V)} | {label} | {cp.counts} | {t_s:.3f} | {t_cp:.3f} | {t_cpv:.3f} | "
+                      f"{t_p:.3f} | {ratios}{extra} |", flush=True)
+            del S
+            gc.collect()
     return 0
 
 

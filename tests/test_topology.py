@@ -440,3 +440,308 @@ def test_critical_points_filter_on_split_mesh():
         b = o3dheat.filters.apply(mw, "critical_points", attribute="positions", column=0, **kw)
         np.testing.assert_array_equal(a.vertex["positions_critical"].numpy(),
                                       b.vertex["positions_critical"].numpy()[F].reshape(-1))
+
+
+# ------------------------------------------------- the compiled loops against the previous code
+# The numpy implementation that the compiled loops (issue 14) replaced, kept as the reference:
+# ranks, lower links from the edge list, union-find over edges with a Python loop over saddles.
+def _ref_classify(S, rank):
+    E = S.E
+    hi0 = rank[E[:, 0]] > rank[E[:, 1]]
+    top = np.where(hi0, E[:, 0], E[:, 1])
+    bottom = np.where(hi0, E[:, 1], E[:, 0])
+    lv = np.bincount(top, minlength=S.n)
+    ftop = S.F[np.arange(len(S.F)), np.argmax(rank[S.F], axis=1)]
+    le = np.bincount(ftop, minlength=S.n)
+    minima = S.used & (lv == 0)
+    maxima = S.used & ~S.boundary & (lv == S.degree)
+    mult = np.where(minima | maxima, 0, np.maximum(lv - le - 1, 0))
+    return top, bottom, mult, minima, maxima
+
+
+def _ref_jump(parent):
+    while True:
+        nxt = parent[parent]
+        if np.array_equal(nxt, parent):
+            return parent
+        parent = nxt
+
+
+def _ref_sweep(rank, top, bottom, merge):
+    N = len(rank)
+    vertex_of_rank = np.empty(N, np.int64)
+    vertex_of_rank[rank] = np.arange(N)
+    sel = ~merge[top]
+    best = np.full(N, N, np.int64)
+    np.minimum.at(best, top[sel], rank[bottom[sel]])
+    parent = np.arange(N)
+    has = best < N
+    parent[has] = vertex_of_rank[best[has]]
+    parent = _ref_jump(parent)
+    sel = merge[top]
+    ts, bs = top[sel], parent[bottom[sel]]
+    o = np.argsort(rank[ts], kind="stable")
+    ts, bs = ts[o], bs[o]
+    uf, creators, destroyers = list(range(N)), [], []
+    for s in np.unique(ts)[np.argsort(rank[np.unique(ts)])].tolist() if len(ts) else []:
+        roots = set()
+        for u in bs[ts == s].tolist():
+            while uf[u] != u:
+                u = uf[u]
+            roots.add(u)
+        elder = min(roots, key=lambda r: rank[r])
+        for r in roots - {elder}:
+            creators.append(r)
+            destroyers.append(s)
+            uf[r] = elder
+        uf[s] = elder
+    root = _ref_jump(np.asarray(uf, dtype=np.int64))[parent]
+    return np.asarray(creators, np.int64), np.asarray(destroyers, np.int64), root
+
+
+def reference_critical(S, f):
+    rank = np.argsort(np.argsort(f, kind="stable"))
+    _, _, mult, minima, maxima = _ref_classify(S, rank)
+    saddles = np.flatnonzero(mult > 0)
+    return np.flatnonzero(minima), saddles, mult[saddles], np.flatnonzero(maxima)
+
+
+def reference_persistence(S, f):
+    """(pairs, dimension, essential, essential_dimension) as the previous implementation made them."""
+    n = S.n
+    rank = np.argsort(np.argsort(f, kind="stable"))
+    top, bottom, mult, _, _ = _ref_classify(S, rank)
+    merge = mult > 0
+    c0, d0, root0 = _ref_sweep(rank, top, bottom, merge)
+    bverts = np.flatnonzero(S.boundary)
+    c1, d1, root1 = _ref_sweep(np.append(n - rank, 0), np.concatenate([bottom, bverts]),
+                               np.concatenate([top, np.full(len(bverts), n)]), np.append(merge, False))
+    ess_min = np.unique(root0[:n][S.used])
+    ess_max = np.unique(root1[:n][S.used])
+    ess_max = ess_max[ess_max != n]
+    left = mult - np.bincount(np.concatenate([d0, d1]), minlength=n)
+    assert np.all(left >= 0)
+    pairs = np.concatenate([np.stack([c0, d0], 1), np.stack([c1, d1], 1)]).reshape(-1, 2)
+    dim = np.concatenate([np.zeros(len(c0), np.int8), np.ones(len(c1), np.int8)])
+    pers = np.abs(f[pairs[:, 1]] - f[pairs[:, 0]])
+    o = np.lexsort((pairs[:, 1], pairs[:, 0], -pers, dim))
+    essential = np.concatenate([ess_min, np.repeat(np.arange(n), left), ess_max])
+    edim = np.repeat([0, 1, 2], [len(ess_min), int(left.sum()), len(ess_max)])
+    return pairs[o], dim[o], essential, edim
+
+
+def moebius(nu=16, nv=3):
+    """A Möbius strip: non-orientable, one boundary curve, χ = 0."""
+    u = np.arange(nu) * 2 * np.pi / nu
+    w = np.linspace(-0.3, 0.3, nv)
+    V = np.array([[(1 + s * np.cos(a / 2)) * np.cos(a), (1 + s * np.cos(a / 2)) * np.sin(a),
+                   s * np.sin(a / 2)] for a in u for s in w])
+    F = []
+    for i in range(nu):
+        for j in range(nv - 1):
+            a, b = i * nv + j, i * nv + j + 1
+            if i + 1 < nu:
+                c, d = a + nv, b + nv
+            else:  # the half twist: the strip comes back upside down
+                c, d = nv - 1 - j, nv - 2 - j
+            F += [[a, c, d], [a, d, b]]
+    return V, np.array(F)
+
+
+def bipyramid(k=200):
+    """A sphere with two vertices of degree k, numbered first (0 and 1): the lower end of all
+    their edges, which exercises the high-degree path of the edge sort."""
+    ang = 2 * np.pi * np.arange(k) / k
+    V = np.concatenate([[[0, 0, 1.0], [0, 0, -1.0]], np.stack([np.cos(ang), np.sin(ang), np.zeros(k)], 1)])
+    F = [[2 + i, 2 + (i + 1) % k, 0] for i in range(k)] + [[2 + (i + 1) % k, 2 + i, 1] for i in range(k)]
+    return V, np.array(F)
+
+
+def several():
+    """Four components: a sphere, a disk, an annulus and a Möbius strip, numbered interleaved."""
+    parts = [icosphere(1), grid(1.0, 1.0, 4, 3), annulus(), moebius(8, 3)]
+    V = np.concatenate([p[0] + 3.0 * i for i, p in enumerate(parts)])
+    offs = np.cumsum([0] + [len(p[0]) for p in parts])
+    F = np.concatenate([p[1] + o for p, o in zip(parts, offs)])
+    perm = np.random.default_rng(0).permutation(len(V))  # a component is not a block of indices
+    inv = np.argsort(perm)
+    return V[perm], inv[F]
+
+
+RANDOM_MESHES = {"sphere": icosphere(1), "torus": torus(1.0, 0.4, 9, 6), "disk": grid(1.0, 1.0, 5, 4),
+                 "annulus": annulus(), "genus2": genus2(), "moebius": moebius(), "bipyramid": bipyramid(40),
+                 "several": several()}
+
+
+def _field_strategy():
+    from hypothesis import strategies as st
+
+    def values(kind, n, seed):
+        rng = np.random.default_rng(seed)
+        if kind == "normal":
+            return rng.standard_normal(n)
+        if kind == "few levels":  # plateaus: ties everywhere, resolved by the vertex index
+            return rng.integers(0, 3, n).astype(float)
+        if kind == "two levels":
+            return (rng.random(n) < 0.5).astype(float)
+        if kind == "constant":
+            return np.zeros(n)
+        return np.round(rng.standard_normal(n), 1)  # "rounded": some ties
+
+    return st.tuples(st.sampled_from(sorted(RANDOM_MESHES)),
+                     st.sampled_from(["normal", "few levels", "two levels", "constant", "rounded"]),
+                     st.integers(0, 2**32 - 1)).map(
+        lambda t: (t[0], t[1], values(t[1], len(RANDOM_MESHES[t[0]][0]), t[2])))
+
+
+def test_hypothesis_same_as_previous_implementation_and_gudhi():
+    """Critical points and persistence equal the previous implementation's, pair for pair, and the
+    finite diagrams equal gudhi's, on random fields with ties and plateaus, on surfaces with
+    boundaries, several components, non-orientable ones and high-degree vertices."""
+    from hypothesis import HealthCheck, given, settings
+
+    @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    @given(_field_strategy())
+    def check(case):
+        name, _, f = case
+        V, F = RANDOM_MESHES[name]
+        S = Surface((V, F))
+        cp = o3dheat.critical_points(S, f)
+        mins, sads, mult, maxs = reference_critical(S, f)
+        assert np.array_equal(cp.minima, mins) and np.array_equal(cp.maxima, maxs)
+        assert np.array_equal(cp.saddles, sads) and np.array_equal(cp.saddle_multiplicity, mult)
+        assert cp.euler_characteristic == S.euler_characteristic
+        d = o3dheat.persistence(S, f)
+        pairs, dim, ess, edim = reference_persistence(S, f)
+        np.testing.assert_array_equal(d.pairs, pairs)
+        np.testing.assert_array_equal(d.dimension, dim)
+        np.testing.assert_array_equal(d.essential, ess)
+        np.testing.assert_array_equal(d.essential_dimension, edim)
+        np.testing.assert_array_equal(d.birth, f[pairs[:, 0]])
+        np.testing.assert_array_equal(d.death, f[pairs[:, 1]])
+        g = _gudhi_diagrams(F, f)
+        assert np.array_equal(_finite(d.intervals(0)), _finite(g[0]))
+        assert np.array_equal(_finite(d.intervals(1)[:, ::-1]), _finite(g[1]))
+
+    check()
+
+
+def test_generic_fields_follow_a_renumbering():
+    """Without ties, the diagram does not depend on the vertex numbering."""
+    rng = np.random.default_rng(11)
+    for name in ("torus", "annulus", "several"):
+        V, F = RANDOM_MESHES[name]
+        f = rng.standard_normal(len(V))
+        perm = rng.permutation(len(V))  # new vertex i is old vertex perm[i]
+        inv = np.argsort(perm)
+        d, dp = o3dheat.persistence((V, F), f), o3dheat.persistence((V[perm], inv[F]), f[perm])
+        assert sorted(map(tuple, d.pairs.tolist())) == sorted(map(tuple, perm[dp.pairs].tolist()))
+        assert sorted(d.essential.tolist()) == sorted(perm[dp.essential].tolist())
+
+
+def _reference_edges(F, n):
+    """Unique edges, faces per edge and the edge of each half-edge, by sorting keys (numpy)."""
+    a, b = F.reshape(-1), F[:, [1, 2, 0]].reshape(-1)
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    uk, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return np.stack([uk // n, uk % n], 1), counts, inv.reshape(-1, 3)
+
+
+@pytest.mark.parametrize("name", list(RANDOM_MESHES))
+def test_surface_tables(name):
+    V, F = RANDOM_MESHES[name]
+    S = Surface((V, F))
+    E, counts, fe = _reference_edges(S.F, S.n)
+    np.testing.assert_array_equal(S.E, E)
+    np.testing.assert_array_equal(S.boundary_edge, counts == 1)
+    np.testing.assert_array_equal(S.face_edges, fe)
+    np.testing.assert_array_equal(S.degree, np.bincount(E.reshape(-1), minlength=S.n))
+    for v in range(S.n):  # the adjacency lists every neighbour once
+        nb = S._adj[S._ptr[v]:S._ptr[v + 1]]
+        want = np.concatenate([E[E[:, 0] == v, 1], E[E[:, 1] == v, 0]])
+        assert sorted(nb.tolist()) == sorted(want.tolist())
+
+
+def test_high_degree_vertex_is_classified():
+    V, F = bipyramid(200)
+    f = V[:, 0] + 0.01 * V[:, 2] + 0.001 * np.arange(len(V))
+    cp = o3dheat.critical_points((V, F), f)
+    ref = brute_critical(F, f)
+    assert cp.minima.tolist() == sorted(ref["min"]) and cp.maxima.tolist() == sorted(ref["max"])
+    assert dict(zip(cp.saddles.tolist(), cp.saddle_multiplicity.tolist())) == ref["saddle"]
+    # the apexes see the whole cycle: sin(3θ) alternates six times, a saddle of multiplicity 2
+    g = np.concatenate([[0.0, 0.0], np.sin(3 * 2 * np.pi * np.arange(200) / 200)])
+    cp = o3dheat.critical_points((V, F), g)
+    assert cp.saddles[:2].tolist() == [0, 1] and cp.saddle_multiplicity[:2].tolist() == [2, 2]
+    S = Surface((V, F))
+    np.testing.assert_array_equal(S.E, _reference_edges(S.F, S.n)[0])
+    assert S.degree[:2].tolist() == [200, 200]
+
+
+def _brute_bad_fans(F, n):
+    """Vertices whose faces form several fans (faces joined across edges through the vertex)."""
+    bad = 0
+    for v in range(n):
+        faces = [t for t in F.tolist() if v in t]
+        if not faces:
+            continue
+        comp = list(range(len(faces)))
+
+        def root(i):
+            while comp[i] != i:
+                i = comp[i]
+            return i
+
+        for i, j in itertools.combinations(range(len(faces)), 2):
+            if len(set(faces[i]) & set(faces[j])) == 2:  # they share an edge, which contains v
+                comp[root(i)] = root(j)
+        bad += len({root(i) for i in range(len(faces))}) > 1
+    return bad
+
+
+def test_hypothesis_fan_check_on_random_face_subsets():
+    """Random holes punched in a sphere and a grid: pinched vertices are found, and only them."""
+    from hypothesis import given, settings, strategies as st
+
+    meshes = [icosphere(1), grid(1.0, 1.0, 5, 5)]
+
+    @settings(max_examples=60, deadline=None)
+    @given(st.integers(0, 1), st.integers(0, 2**32 - 1), st.floats(0.05, 0.6))
+    def check(which, seed, drop):
+        V, F = meshes[which]
+        F = F[np.random.default_rng(seed).random(len(F)) >= drop]
+        if len(F) == 0:
+            return
+        bad = _brute_bad_fans(F, len(V))
+        if bad:
+            with pytest.raises(o3dheat.MeshError, match=f"^{bad} vertices are non-manifold"):
+                Surface.from_faces(len(V), F)
+        else:
+            S = Surface.from_faces(len(V), F)
+            f = np.random.default_rng(seed).standard_normal(len(V))
+            d = o3dheat.persistence(S, f)
+            pairs, dim, ess, edim = reference_persistence(S, f)
+            np.testing.assert_array_equal(d.pairs, pairs)
+            np.testing.assert_array_equal(d.essential, ess)
+
+    check()
+
+
+def test_too_many_vertices_are_refused():
+    with pytest.raises(o3dheat.MeshError, match="at most"):
+        Surface.from_faces(2**31, np.array([[0, 1, 2]]))
+
+
+def test_compiled_loops_are_cached():
+    """The numba cache of the compiled loops is written (beside the module, or NUMBA_CACHE_DIR),
+    so that only the first call of an installation compiles."""
+    from pathlib import Path
+
+    from o3dheat.topology import _kernel
+
+    V, F = icosphere(1)
+    o3dheat.persistence((V, F), V[:, 0])
+    for name in ("_k_edges", "_k_fans", "_k_classify", "_k_arcs", "_k_sweeps"):
+        k = _kernel(name)
+        assert k.signatures, name
+        assert Path(k._cache._cache_file._index_path).is_file(), name
