@@ -245,23 +245,34 @@ def _zero_area(V, F):
 
 
 
+def _mix64(x):
+    """splitmix64's finalizer on uint64 arrays: every input bit reaches every output bit."""
+    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return x ^ (x >> np.uint64(31))
+
+
 def _first_copies(P):
     """(m,) int64: for each row of ``P`` (m, 3), the smallest index of a row with exactly the same
-    float64 values (itself when unique; -0.0 equals 0.0). Fast path for the usual case: a 64-bit
-    hash of the coordinate bits with no repeated value means no two rows are equal, and only a
-    repeat pays for the full ``np.unique`` over the rows."""
+    float64 values (itself when unique; -0.0 equals 0.0). A 64-bit hash of the coordinate bits
+    (well mixed: grid-like coordinates, whose low bits are zeros, do not collide) finds the
+    candidates, and only the rows whose hash repeats pay for an exact ``np.unique``."""
     m = len(P)
     idx = np.arange(m, dtype=np.int64)
     if m < 2:
         return idx
     bits = (np.ascontiguousarray(P, dtype=np.float64) + 0.0).view(np.uint64)
-    h = np.sort(bits[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
-                ^ bits[:, 2])
-    if not np.any(h[1:] == h[:-1]):
+    with np.errstate(over="ignore"):
+        h = _mix64(_mix64(_mix64(bits[:, 0]) ^ bits[:, 1]) ^ bits[:, 2])
+    hs = np.sort(h)
+    repeated = hs[1:][hs[1:] == hs[:-1]]
+    if len(repeated) == 0:
         return idx
+    rows = np.flatnonzero(np.isin(h, repeated))  # equal rows have equal hashes: all in here
     # the index of the first occurrence is the smallest (np.unique sorts stably when asked for it)
-    _, first, inv = np.unique(P, axis=0, return_index=True, return_inverse=True)
-    return first[inv.reshape(-1)].astype(np.int64)
+    _, first, inv = np.unique(P[rows], axis=0, return_index=True, return_inverse=True)
+    idx[rows] = rows[first[inv.reshape(-1)]]
+    return idx
 
 
 def _weld_map(V, F):

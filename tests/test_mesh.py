@@ -381,3 +381,28 @@ def test_check_mesh_validates_shapes_exactly_as_eigensolve(V, F, message):
     for fn in (o3dheat.check_mesh, lambda m: o3dheat.eigensolve(m, k=2), o3dheat.as_arrays):
         with pytest.raises(o3dheat.MeshError, match=message):
             fn((V, F))
+
+
+def test_first_copies_on_grid_coordinates_hash_without_collisions_and_match_brute_force(monkeypatch):
+    import o3dheat.mesh as m
+
+    g = np.linspace(-1, 1, 41)  # grid-like coordinates: many zero low bits (the old hash collided)
+    P = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    calls = []
+    real_unique = np.unique
+    def unique(*a, **k):  # the exact comparison of rows (np.isin's own uses have no axis)
+        if k.get("axis") == 0:
+            calls.append(len(a[0]))
+        return real_unique(*a, **k)
+
+    monkeypatch.setattr(m.np, "unique", unique)
+    np.testing.assert_array_equal(m._first_copies(P), np.arange(len(P)))
+    assert calls == []  # no duplicate: no exact comparison at all
+    rng = np.random.default_rng(3)
+    Q = np.concatenate([P[:500], P[rng.integers(0, 500, 40)], -0.0 * P[:1]])  # 40 copies, and -0.0
+    rng.shuffle(Q)
+    got = m._first_copies(Q)
+    assert calls and max(calls) < 100  # only the repeated rows are compared exactly
+    first = {}
+    expected = np.array([first.setdefault(tuple(q + 0.0), i) for i, q in enumerate(Q)])
+    np.testing.assert_array_equal(got, expected)
