@@ -373,7 +373,8 @@ class _CholmodFactor:
         out = np.empty(b.shape)
         if b.size == 0:
             return out
-        b2, out2 = b.reshape(self.n, -1), out.reshape(self.n, -1)
+        # column-major once (CHOLMOD's layout): each group is then a contiguous slice, not a copy
+        b2, out2 = np.asfortranarray(b.reshape(self.n, -1)), out.reshape(self.n, -1)
         # CHOLMOD's simplicial solve works on groups of 4 columns (1-, 2-, 3- and 4-column kernels
         # round differently): the threads get whole groups, so results do not depend on their count
         groups = -(-b2.shape[1] // 4)

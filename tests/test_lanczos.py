@@ -89,3 +89,21 @@ def test_results_do_not_depend_on_the_thread_count(monkeypatch):
         np.testing.assert_array_equal(s.eigenvalues, out[0].eigenvalues)
         np.testing.assert_array_equal(s.eigenvectors, out[0].eigenvectors)
         np.testing.assert_array_equal(s.residuals, out[0].residuals)
+
+
+def test_a_warm_start_block_gives_the_same_spectrum_with_fewer_solves():
+    from o3dheat import sampling
+
+    V, F = icosphere(4)
+    ref = o3dheat.eigensolve((V, F), k=40, method="dense")
+    Vj = sampling.jitter((V, F), amount=0.2, seed=1)
+    L, B, sigma, solve = operators((Vj.V, Vj.F))
+    X0 = sampling.transfer(ref.eigenvectors, (V, F), Vj.V)  # the reference's eigenvectors, moved over
+    start = X0 @ np.random.default_rng(1).standard_normal((40, 8))
+    cold = block_lanczos(L, B, solve, 40, sigma)
+    warm = block_lanczos(L, B, solve, 40, sigma, start=start)
+    np.testing.assert_allclose(warm[0], cold[0], rtol=1e-10, atol=1e-12)
+    assert warm[2]["solves"] < cold[2]["solves"]
+    for bad in (start[:, :3], np.full_like(start, np.nan)):
+        with pytest.raises(o3dheat.MeshError, match="start block"):
+            block_lanczos(L, B, solve, 40, sigma, start=bad)
