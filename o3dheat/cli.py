@@ -1,4 +1,5 @@
-"""The ``o3dheat`` command: ``info``, ``filters``, ``apply``, ``spectrum``, ``figure``, ``study``, ``demo``.
+"""The ``o3dheat`` command: ``info``, ``repair``, ``filters``, ``apply``, ``batch``, ``spectrum``, ``figure``,
+``study``, ``demo``.
 
 User errors (missing files, unknown filters or parameters, bad values) print one line starting
 with ``o3dheat: error:`` and exit with status 2; no traceback. ``-v`` logs what happens.
@@ -39,6 +40,20 @@ Vertex attributes of a PLY input are carried over. The input is never overwritte
 parameters: -f NAME:key=value,key=value; list values with + (times=0.01+0.02+0.05);
 none/true/false are read as such. Outputs are .ply or .npz; the input is never overwritten
 unless --overwrite is given.""",
+    "batch": """examples:
+  o3dheat batch 'scans/*.ply' --out results/ -f scalar:kind=height \\
+      -f heat_smooth:attribute=height,k=100 -f colorize:attribute=height_smooth,column=4
+  o3dheat batch 'scans/**/*.obj' more/x.ply --out results/ --chain chain.toml --scheduler sequential
+  o3dheat batch 'scans/*.ply' --out results/ --chain chain.toml --scheduler tcp://10.0.0.5:8786
+
+Quote the patterns: o3dheat expands them. Each input gives results/<its stem>.ply (or .npz),
+written atomically. The chain is recorded in results/o3dheat-batch.toml: running the same chain
+again skips the outputs that exist (an interrupted batch resumes, failed files are retried);
+another chain into the same folder is refused; --overwrite recomputes every output (and removes
+those of files that fail). A file that fails is reported (exit status 1) and does not stop the
+others; Ctrl-C keeps the finished outputs (exit status 130). Refused before any work (exit
+status 2): a pattern matching nothing, two inputs with the same output name, an output that would
+replace an input. Default scheduler: a local Dask cluster, one worker per core.""",
     "spectrum": """examples:
   o3dheat spectrum mesh.ply -k 200 -o spectrum.npz""",
     "study": """examples:
@@ -107,6 +122,20 @@ def _parser():
     a.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
     a.add_argument("--cache", nargs="?", const=True, metavar="DIR",
                    help="keep spectra on disk (default folder: $O3DHEAT_CACHE or the user cache folder, ~/.cache/o3dheat on Linux)")
+    b = _sub(sub, "batch", "run a chain of filters on many files (in parallel, resumable)")
+    b.add_argument("inputs", nargs="+", metavar="INPUT", help="files or quoted glob patterns ('scans/*.ply')")
+    b.add_argument("--out", required=True, metavar="DIR", help="output folder (created): DIR/<input stem>.ply")
+    b.add_argument("-f", "--filter", action="append", default=[], metavar="NAME:key=value,...",
+                   help="a filter and its parameters (repeatable; run in order)")
+    b.add_argument("--chain", help="a TOML chain file (run before any -f)")
+    b.add_argument("--scheduler", help="'sequential', or a Dask scheduler address (default: a local cluster)")
+    b.add_argument("--format", choices=["ply", "npz"], default="ply", help="output format (default: %(default)s)")
+    b.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
+    b.add_argument("--overwrite", action="store_true",
+                   help="recompute every output, removing those of files that fail (default: skip the "
+                        "outputs that exist)")
+    b.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="a progress bar (default: when stderr is a terminal)")
     s = _sub(sub, "spectrum", "compute the smallest eigenpairs of a mesh and save them")
     s.add_argument("input", help="mesh file")
     s.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
@@ -192,6 +221,41 @@ def _check_output(path, overwrite):
         raise MeshError(f"{path} exists: add --overwrite to replace it")
 
 
+def _chain(args):
+    """The chain of --chain and the -f filters (MeshError when there is none)."""
+    from . import filters as flt
+
+    chain = flt.Chain.load(args.chain) if args.chain else flt.Chain()
+    for text in args.filter:
+        name, params = _parse_filter(text)
+        chain.append(name, **params)
+    if not len(chain):
+        raise MeshError("no filter given: use -f NAME:key=value or --chain FILE (o3dheat filters lists them)")
+    return chain
+
+
+def _batch(args):
+    from .batch import run, summary
+
+    chain = _chain(args)
+    try:
+        table = run(chain, args.inputs, args.out, scheduler=args.scheduler, overwrite=args.overwrite,
+                    suffix="." + args.format, binary=not args.ascii, progress=args.progress)
+    except KeyboardInterrupt:
+        print("o3dheat: interrupted; the finished outputs are kept: run the same command again to resume",
+              file=sys.stderr)
+        return 130
+    print(f"{summary(table)}; outputs in {args.out}")
+    failed = table[table["status"] == "failed"]
+    if len(failed):
+        print(f"{len(failed)} file(s) failed (retried when the same command runs again):", file=sys.stderr)
+        for _, r in failed.iterrows():
+            error = r["error"] if r["error"].startswith(r["input"]) else f"{r['input']}: {r['error']}"
+            print(f"  {error}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def _apply(args):
     from . import filters as flt
     from .io import read_geometry, write_geometry
@@ -211,12 +275,7 @@ def _apply(args):
             if other is not None and _same_file(saved, other):
                 raise MeshError(f"--save-chain {saved} is {what}: choose another file")
         _check_output(saved, args.overwrite)
-    chain = flt.Chain.load(args.chain) if args.chain else flt.Chain()
-    for text in args.filter:
-        name, params = _parse_filter(text)
-        chain.append(name, **params)
-    if not len(chain):
-        raise MeshError("no filter given: use -f NAME:key=value or --chain FILE (o3dheat filters lists them)")
+    chain = _chain(args)
     geometry = read_geometry(src)
     if args.cache:
         flt.set_disk_cache(args.cache)
@@ -384,6 +443,8 @@ def main(argv=None):
             _filters(args)
         elif args.command == "apply":
             _apply(args)
+        elif args.command == "batch":
+            return _batch(args)
         elif args.command == "spectrum":
             _spectrum(args)
         elif args.command == "figure":

@@ -375,6 +375,43 @@ class Chain:
             mesh = step(mesh)
         return mesh
 
+    def map(self, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", binary=True, progress=None):
+        """Run the chain on many files, one task per file, resumable: :func:`o3dheat.batch.run`.
+
+        Parameters
+        ----------
+        paths : str, Path or sequence of them
+            Files or glob patterns (``"scans/*.ply"``).
+        out_dir : str or Path
+            Output folder: ``out_dir/<input stem>.ply`` (or ``.npz``) per input.
+        scheduler : None, "sequential", str or distributed.Client
+            None: a local Dask cluster; "sequential": in this process; an address or a Client.
+        overwrite : bool
+            False: outputs that exist are skipped (resume); True: all are recomputed.
+        suffix : {".ply", ".npz"}
+        binary : bool
+        progress : bool, optional
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per input: ``input``, ``output``, ``status`` ("done", "skipped", "failed"),
+            ``seconds``, ``error``.
+
+        Examples
+        --------
+        >>> import os, tempfile, open3d as o3d, o3dheat
+        >>> d = tempfile.mkdtemp()
+        >>> o3dheat.io.write_mesh(os.path.join(d, "s.ply"), o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+        >>> chain = o3dheat.filters.Chain([("scalar", {"kind": "height"})])
+        >>> chain.map(os.path.join(d, "*.ply"), os.path.join(d, "out"), scheduler="sequential")["status"].tolist()
+        ['done']
+        """
+        from .batch import run  # batch imports this module
+
+        return run(self, paths, out_dir, scheduler=scheduler, overwrite=overwrite, suffix=suffix, binary=binary,
+                   progress=progress)
+
     def to_dict(self):
         return {"filter": [{"name": _name_of(s), **_plain(dataclasses.asdict(s))} for s in self.steps]}
 

@@ -23,7 +23,9 @@ who picked a scale on one scan and applies it to another. (The "linear" kernel's
 dimensionless and grow with the vertex spacing, so its times are not comparable to the others'.)
 
 Execution: one task per (mesh, resampling) that computes its spectra once; on a local Dask
-cluster by default, in-process with ``scheduler="sequential"``, or on any cluster by address.
+cluster by default, in-process with ``scheduler="sequential"``, or on any cluster by address
+(:mod:`o3dheat.cluster`); on Dask the largest resamplings start first, so that no worker is left
+alone with a long task at the end.
 Each task's rows are written to ``out/tasks/`` as soon as it finishes, so an interrupted study
 resumes where it stopped; a failing task becomes a row with its error and does not stop the
 study. All computations run with one BLAS thread and one o3dheat thread (the workers are the
@@ -34,14 +36,13 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import re
-import sys
 import traceback
 from pathlib import Path
 
 import numpy as np
 
+from .cluster import progress_bar, session
 from .errors import MeshError
 from .kernel import VARIANTS
 
@@ -253,53 +254,23 @@ def _unique_slugs(names, what):
         seen[s] = n
 
 
-def _client(scheduler):
-    """(client, owned) for a scheduler argument; None for sequential."""
-    from .sampling import warm_up
-
-    if scheduler == "sequential":
-        warm_up()
-        return None, False
-    from distributed import Client, LocalCluster
-
-    if scheduler is None:
-        n = os.cpu_count() or 1
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
-        client, owned = Client(cluster), True
-    elif isinstance(scheduler, Client):
-        client, owned = scheduler, False
-    elif isinstance(scheduler, str):
-        client, owned = Client(scheduler), True
-    else:
-        raise MeshError(f"scheduler must be None, 'sequential', an address or a distributed.Client, "
-                        f"got {scheduler!r}")
-    _register_warm_up(client)
-    return client, owned
-
-
-def _register_warm_up(client):
-    """pymeshlab's first call in each worker's main thread (see o3dheat.sampling.warm_up)."""
-    from distributed.diagnostics.plugin import WorkerPlugin
-
-    class WarmUp(WorkerPlugin):
-        name = "o3dheat-pymeshlab-warm-up"
-
-        def setup(self, worker):
-            from o3dheat.sampling import warm_up
-
-            warm_up()
-
-    register = getattr(client, "register_plugin", None) or client.register_worker_plugin
-    register(WarmUp())
-
-
-def _bar(total, progress):
-    show = sys.stderr.isatty() if progress is None else bool(progress)
-    if not show:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, unit="task", file=sys.stderr)
+def _cost(spec, n):
+    """A rough size (vertices) of a resampling of an n-vertex mesh: only to start the longest
+    tasks first."""
+    kind = spec.get("kind")
+    try:
+        if kind == "decimate":
+            faces = spec.get("target_faces")
+            return faces / 2 if faces else n * (1 - spec.get("reduction", 0.7))
+        if kind == "subdivide":
+            return n * 4 ** spec.get("iterations", 1)
+        if kind == "remesh":
+            return n / spec.get("edge_factor", 1.0) ** 2 if spec.get("target_edge_length") is None else n
+        if kind == "anisotropic":
+            return n * (0.5 / spec.get("coarse", 8.0) ** 2 + 0.5 / spec.get("fine", 0.5) ** 2)
+        return float(n)
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError):  # bad values fail in the task
+        return float(n)
 
 
 def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTORS, scales=10, k=100,
@@ -329,7 +300,8 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
         pyarrow is installed, ``study.parquet``. None keeps everything in memory (no resume).
     scheduler : None, "sequential", str or distributed.Client
         None: a local Dask cluster with one single-threaded worker process per core;
-        "sequential": in this process; "tcp://host:port": an existing cluster.
+        "sequential": in this process; "tcp://host:port": an existing cluster; a Client: used
+        and left open (:mod:`o3dheat.cluster`).
     progress : bool, optional
         A progress bar (default: when stderr is a terminal).
     grid : {"paper", "log"}
@@ -388,7 +360,7 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
                 rows += _read_rows(f)
             else:
                 todo.append((mname, rname, spec))
-    bar = _bar(len(todo), progress)
+    bar = progress_bar(len(todo), progress)
 
     def done(mname, rname, result):
         rows.extend(result)
@@ -400,35 +372,35 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
             bar.update(1)
 
     needed = sorted({m for m, _, _ in todo})
-    client, owned = _client(scheduler) if todo else (None, False)
     try:
-        if client is None:
-            refs = {}
-            for mname, rname, spec in todo:
-                if mname not in refs:
-                    refs[mname] = _reference(*arrays[mname], cfg)
-                done(mname, rname, _task(mname, rname, spec, refs[mname], cfg))
-        else:
-            from distributed import as_completed
+        with session(scheduler if todo else "sequential", warm_up=bool(todo)) as client:
+            if client is None:
+                refs = {}
+                for mname, rname, spec in todo:
+                    if mname not in refs:
+                        refs[mname] = _reference(*arrays[mname], cfg)
+                    done(mname, rname, _task(mname, rname, spec, refs[mname], cfg))
+            else:
+                from distributed import as_completed
 
-            refs = {m: client.submit(_reference, *arrays[m], cfg, pure=False) for m in needed}
-            futures = {client.submit(_task, m, r, s, refs[m], cfg, pure=False): (m, r, s) for m, r, s in todo}
-            for fut in as_completed(list(futures)):
-                m, r, s = futures[fut]
-                try:
-                    result = fut.result()
-                except Exception as e:  # e.g. the reference of this mesh failed
-                    result = [[m, r, s["kind"], "", "", 0, float("nan"), float("nan"), float("nan"), 0,
-                               f"{type(e).__name__}: {e}"]]
-                done(m, r, result)
+                # the longest tasks first (a worker that starts one last would finish alone);
+                # the references before everything (every task of a mesh waits for its own)
+                order = sorted(todo, key=lambda x: -_cost(x[2], len(arrays[x[0]][0])))
+                top = len(order) + 1
+                refs = {m: client.submit(_reference, *arrays[m], cfg, pure=False, priority=top) for m in needed}
+                futures = {client.submit(_task, m, r, s, refs[m], cfg, pure=False, priority=len(order) - i):
+                           (m, r, s) for i, (m, r, s) in enumerate(order)}
+                for fut in as_completed(list(futures)):
+                    m, r, s = futures[fut]
+                    try:
+                        result = fut.result()
+                    except Exception as e:  # e.g. the reference of this mesh failed
+                        result = [[m, r, s["kind"], "", "", 0, float("nan"), float("nan"), float("nan"), 0,
+                                   f"{type(e).__name__}: {e}"]]
+                    done(m, r, result)
     finally:
         if bar is not None:
             bar.close()
-        if owned:
-            cluster = getattr(client, "cluster", None)
-            client.close()
-            if cluster is not None:
-                cluster.close()
     table = pd.DataFrame(rows, columns=COLUMNS)
     table = table.sort_values(["mesh", "resampling", "kernel", "descriptor", "scale"], kind="stable")
     table = table.reset_index(drop=True)

@@ -179,7 +179,7 @@ def test_cli_spectrum_and_figure(tmp_path, sphere_ply, capsys):
 
 
 def test_every_subcommand_has_examples():
-    for cmd in ("demo", "info", "filters", "apply", "spectrum", "figure"):
+    for cmd in ("demo", "info", "filters", "apply", "batch", "spectrum", "figure", "study"):
         r = subprocess.run([sys.executable, "-m", "o3dheat.cli", cmd, "--help"], capture_output=True, text=True)
         assert r.returncode == 0 and "examples:" in r.stdout, cmd
 

@@ -191,6 +191,24 @@ def test_chain_toml_round_trip(sphere, tmp_path):
         flt.Chain.load(tmp_path / "missing.toml")
 
 
+def test_chain_map_runs_the_chain_over_files(sphere, tmp_path, monkeypatch):
+    """Chain.map is o3dheat.batch.run on the chain (tested in test_batch.py)."""
+    from o3dheat.io import read_mesh, write_mesh
+
+    for name in ("a", "b"):
+        write_mesh(tmp_path / f"{name}.ply", sphere)
+    chain = flt.Chain([("scalar", {"kind": "gaussian_curvature"})])
+    table = chain.map(tmp_path / "*.ply", tmp_path / "out", scheduler="sequential", progress=False)
+    assert table["status"].tolist() == ["done", "done"]
+    np.testing.assert_array_equal(read_mesh(tmp_path / "out" / "b.ply").vertex["gaussian_curvature"].numpy(),
+                                  chain(read_mesh(tmp_path / "b.ply")).vertex["gaussian_curvature"].numpy())
+    calls = []
+    monkeypatch.setattr(o3dheat.batch, "run", lambda *a, **k: calls.append((a, k)))
+    chain.map(["x.ply"], "out", scheduler="tcp://h:1", overwrite=True, suffix=".npz")
+    assert calls == [((chain, ["x.ply"], "out"), dict(scheduler="tcp://h:1", overwrite=True, suffix=".npz",
+                                                     binary=True, progress=None))]
+
+
 def test_a_third_party_plugin_is_found(tmp_path, monkeypatch):
     """A throw-away distribution, as a wheel made here (no build backend needed), installed by pip."""
     import zipfile

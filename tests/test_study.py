@@ -51,11 +51,12 @@ def test_discrepancy_is_zero_for_an_identical_resampling():
 
 def test_dask_gives_the_same_table(sequential, tmp_path):
     pytest.importorskip("distributed")
-    from distributed import Client, LocalCluster
+    from distributed import Client
+
+    from o3dheat.cluster import local_cluster
 
     _, ref = sequential
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            Client(cluster) as client:
+    with local_cluster(2) as cluster, Client(cluster) as client:
         t = robustness_study(MESHES, RES, out=tmp_path, scheduler=client, progress=False, **SMALL)
     pd.testing.assert_frame_equal(t, ref, check_exact=True)
 
@@ -198,3 +199,13 @@ def test_one_kernel_name_is_a_list_of_one():
     t = robustness_study({"s": icosphere(1)}, ["jitter"], kernels="weighted", descriptors="smooth_height",
                          scheduler="sequential", progress=False, k=8, scales=2)
     assert set(t["kernel"]) == {"weighted"} and set(t["descriptor"]) == {"smooth_height"}
+
+
+def test_dask_starts_the_largest_resamplings_first():
+    from o3dheat.study import _cost
+
+    specs = {"sub": {"kind": "subdivide"}, "aniso": {"kind": "anisotropic"}, "jit": {"kind": "jitter"},
+             "rem": {"kind": "remesh", "edge_factor": 1.5}, "dec": {"kind": "decimate", "reduction": 0.8},
+             "bad": {"kind": "subdivide", "iterations": "x"}}
+    order = sorted(specs, key=lambda name: -_cost(specs[name], 1000))
+    assert order == ["sub", "aniso", "jit", "bad", "rem", "dec"]

@@ -1,0 +1,242 @@
+"""A chain over many files: resume, failures, name checks, sequential = Dask bit for bit, the command."""
+
+import os
+import shutil
+
+import numpy as np
+import open3d as o3d
+import pytest
+from conftest import torus
+
+import o3dheat
+from o3dheat.batch import COLUMNS, MANIFEST, expand, outputs, run
+from o3dheat.cli import main
+from o3dheat.filters import Chain
+from o3dheat.io import read_mesh, write_mesh
+
+STEPS = [("scalar", {"kind": "height"}), ("heat_smooth", {"attribute": "height", "k": 20, "scales": 3}),
+         ("colorize", {"attribute": "height_smooth", "column": 1})]
+FLAGS = ["-f", "scalar:kind=height", "-f", "heat_smooth:attribute=height,k=20,scales=3",
+         "-f", "colorize:attribute=height_smooth,column=1"]
+
+
+def _mesh(i):
+    if i == 2:
+        V, F = torus(1.0, 0.4, 20, 10)
+        m = o3d.t.geometry.TriangleMesh(o3d.core.Tensor(V), o3d.core.Tensor(F))
+    else:
+        m = o3d.t.geometry.TriangleMesh.create_sphere(1.0 + i, 10 + 2 * i)
+    V = m.vertex.positions.numpy().astype(np.float64)
+    m.vertex.positions = o3d.core.Tensor(V * [1.2, 1.0, 0.9] + 0.03 * np.sin(3 * V[:, [1, 2, 0]]))
+    return m
+
+
+@pytest.fixture
+def scans(tmp_path):
+    d = tmp_path / "scans"
+    d.mkdir()
+    for i in range(3):
+        write_mesh(d / f"m{i}.ply", _mesh(i))
+    return d
+
+
+def _bad(folder):
+    """A truncated PLY (its header promises more than the file holds) and a text file."""
+    good = (folder / "m0.ply").read_bytes()
+    (folder / "cut.ply").write_bytes(good[: len(good) // 2])
+    (folder / "text.ply").write_text("not a mesh\n")
+
+
+def _attributes(path):
+    m = read_mesh(path)
+    return {k: m.vertex[k].numpy() for k in m.vertex}, m.triangle.indices.numpy()
+
+
+def _same_outputs(a, b):
+    names = sorted(p.name for p in a.glob("*.ply"))
+    assert names and names == sorted(p.name for p in b.glob("*.ply"))
+    for name in names:
+        (va, fa), (vb, fb) = _attributes(a / name), _attributes(b / name)
+        assert va.keys() == vb.keys() and np.array_equal(fa, fb)
+        for k in va:
+            assert va[k].dtype == vb[k].dtype and np.array_equal(va[k], vb[k]), (name, k)
+
+
+# --------------------------------------------------------------------------------- sequential
+def test_sequential_table_outputs_and_resume(scans, tmp_path):
+    out = tmp_path / "out"
+    t = Chain(STEPS).map(str(scans / "*.ply"), out, scheduler="sequential", progress=False)
+    assert list(t.columns) == COLUMNS and t["status"].tolist() == ["done"] * 3
+    assert t["input"].tolist() == [str(scans / f"m{i}.ply") for i in range(3)]
+    assert t["output"].tolist() == [str(out / f"m{i}.ply") for i in range(3)]
+    assert (t["seconds"] > 0).all() and (t["error"] == "").all()
+    direct = Chain(STEPS)(read_mesh(scans / "m1.ply"))
+    got, _ = _attributes(out / "m1.ply")
+    assert set(got) == {"positions", "height", "height_smooth", "colors"}
+    np.testing.assert_allclose(got["height_smooth"], direct.vertex["height_smooth"].numpy(), rtol=0, atol=1e-12)
+    assert Chain.load(out / MANIFEST).to_dict() == Chain(STEPS).to_dict()  # a chain file: replayable
+
+    before = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in out.glob("*.ply")}
+    (out / "m2.ply").unlink()  # an interrupted run: m2 never written
+    t = run(Chain(STEPS), [scans / "m*.ply"], out, scheduler="sequential", progress=False)
+    assert t["status"].tolist() == ["skipped", "skipped", "done"] and t["seconds"].iloc[0] == 0
+    for name in ("m0.ply", "m1.ply"):
+        assert (out / name).stat().st_mtime_ns == before[name][0]
+    assert (out / "m2.ply").read_bytes() == before["m2.ply"][1]
+    t = run(STEPS, scans / "m0.ply", out, scheduler="sequential", overwrite=True, progress=False)
+    assert t["status"].tolist() == ["done"] and (out / "m0.ply").read_bytes() == before["m0.ply"][1]
+
+
+def test_a_bad_file_fails_alone_and_is_retried(scans, tmp_path, capsys):
+    _bad(scans)
+    out = tmp_path / "out"
+    t = run(STEPS, scans / "*.ply", out, scheduler="sequential", progress=False)
+    status = dict(zip((os.path.basename(p) for p in t["input"]), t["status"]))
+    assert status == {"cut.ply": "failed", "m0.ply": "done", "m1.ply": "done", "m2.ply": "done", "text.ply": "failed"}
+    errors = t.set_index("status").loc["failed", "error"].tolist()
+    assert any("truncated" in e for e in errors) and all(str(scans) in e for e in errors)  # the paths as given
+    assert not (out / "cut.ply").exists() and not (out / "text.ply").exists()
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary file left
+    # the command: exit status 1, one line per failure naming the file, no traceback
+    rc = main(["batch", str(scans / "*.ply"), "--out", str(out), "--scheduler", "sequential"] + FLAGS)
+    assert rc == 1
+    cap = capsys.readouterr()
+    assert "5 files: 0 done, 3 skipped" in cap.out and "2 failed" in cap.out
+    assert f"  {scans / 'cut.ply'}: " in cap.err and "Traceback" not in cap.err
+    # a filter that fails on every file: reported, nothing written
+    rc = main(["batch", str(scans / "m*.ply"), "--out", str(tmp_path / "o2"), "--scheduler", "sequential",
+               "-f", "heat_smooth:attribute=missing,k=10"])
+    cap = capsys.readouterr()
+    assert rc == 1 and cap.err.count("no vertex attribute 'missing'") >= 3
+    assert not list((tmp_path / "o2").glob("*.ply"))
+
+
+# --------------------------------------------------------------------------------- refused
+def test_names_are_checked_before_any_work(scans, tmp_path):
+    other = tmp_path / "other"
+    other.mkdir()
+    write_mesh(other / "M1.npz", _mesh(0))
+    out = tmp_path / "out"
+    with pytest.raises(o3dheat.MeshError, match="would both be written to"):
+        run(STEPS, [scans / "*.ply", other / "*.npz"], out, scheduler="sequential")
+    with pytest.raises(o3dheat.MeshError, match="no file matches"):
+        run(STEPS, [scans / "*.ply", tmp_path / "none" / "*.ply"], out, scheduler="sequential")
+    with pytest.raises(o3dheat.MeshError, match="no such file"):
+        run(STEPS, [scans / "missing.ply"], out, scheduler="sequential")
+    with pytest.raises(o3dheat.MeshError, match="empty chain"):
+        run([], scans / "*.ply", out, scheduler="sequential")
+    with pytest.raises(o3dheat.MeshError, match="suffix"):
+        run(STEPS, scans / "*.ply", out, suffix=".obj", scheduler="sequential")
+    assert not out.exists()
+    # the input folder as the output folder: an output would replace its input
+    before = {p.name: p.read_bytes() for p in scans.iterdir()}
+    with pytest.raises(o3dheat.MeshError, match="refusing to overwrite the input"):
+        run(STEPS, scans / "*.ply", scans, scheduler="sequential", overwrite=True)
+    assert {p.name: p.read_bytes() for p in scans.iterdir()} == before
+    # ... which is fine when the outputs get other names
+    t = run(STEPS[:1], scans / "m0.ply", scans, suffix=".npz", scheduler="sequential", progress=False)
+    assert t["status"].tolist() == ["done"] and (scans / "m0.npz").exists()
+    assert (scans / "m0.ply").read_bytes() == before["m0.ply"]
+
+
+def test_another_chain_or_foreign_files_are_refused(scans, tmp_path):
+    out = tmp_path / "out"
+    run(STEPS, scans / "*.ply", out, scheduler="sequential", progress=False)
+    other = STEPS[:1] + [("hks", {"k": 20, "scales": 2})]
+    with pytest.raises(o3dheat.MeshError, match="another chain"):
+        run(other, scans / "*.ply", out, scheduler="sequential")
+    _bad(scans)
+    shutil.copy(out / "m0.ply", out / "cut.ply")  # an earlier result for a file that fails now
+    t = run(other, scans / "*.ply", out, scheduler="sequential", overwrite=True, progress=False)
+    assert (t["status"] == "done").sum() == 3 and "hks" in read_mesh(out / "m0.ply").vertex
+    assert not (out / "cut.ply").exists()  # not passed off as a result of this run
+    assert Chain.load(out / MANIFEST).to_dict() == Chain(other).to_dict()
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "m0.ply").write_text("someone's file")
+    with pytest.raises(o3dheat.MeshError, match="not written by a batch"):
+        run(STEPS, scans / "m0.ply", foreign, scheduler="sequential")
+    assert (foreign / "m0.ply").read_text() == "someone's file"
+
+
+def test_expand_and_outputs(tmp_path):
+    (tmp_path / "a" / "deep").mkdir(parents=True)
+    for p in ("a/x.ply", "a/y.ply", "a/deep/z.ply", "a/.hidden.ply"):
+        (tmp_path / p).write_text("")
+    got = expand([str(tmp_path / "a" / "**" / "*.ply"), tmp_path / "a" / "x.ply"])
+    assert [p.name for p in got] == ["z.ply", "x.ply", "y.ply"]
+    with pytest.raises(o3dheat.MeshError, match="is a folder"):
+        expand(tmp_path / "a")
+    with pytest.raises(o3dheat.MeshError, match="no input"):
+        expand([])
+    assert [p.name for p in outputs(got, tmp_path / "o", ".npz")] == ["z.npz", "x.npz", "y.npz"]
+
+
+# --------------------------------------------------------------------------------- Dask
+def test_dask_gives_the_same_files_bit_for_bit(scans, tmp_path):
+    pytest.importorskip("distributed")
+    from distributed import Client
+
+    from o3dheat.cluster import local_cluster
+
+    _bad(scans)
+    big = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 100)  # 19802 vertices: more than one row part
+    V = big.vertex.positions.numpy().astype(np.float64)  # of o3dheat.parallel, on 2 threads in-process
+    big.vertex.positions = o3d.core.Tensor(V * [1.3, 1.0, 0.8] + 0.05 * np.sin(3 * V[:, [1, 2, 0]]))
+    write_mesh(scans / "big.ply", big)
+    seq = run(STEPS, scans / "*.ply", tmp_path / "seq", scheduler="sequential", progress=False)
+    with local_cluster(2) as cluster, Client(cluster) as client:  # real worker processes
+        dist = run(STEPS, scans / "*.ply", tmp_path / "dask", scheduler=client, progress=False)
+        assert client.status == "running"  # a given client is left open
+    assert dist["status"].tolist() == seq["status"].tolist() and (dist["status"] == "failed").sum() == 2
+    assert dist["error"].tolist() == seq["error"].tolist()
+    _same_outputs(tmp_path / "seq", tmp_path / "dask")
+    for p in (tmp_path / "seq").glob("*.ply"):
+        assert p.read_bytes() == (tmp_path / "dask" / p.name).read_bytes()
+
+
+# --------------------------------------------------------------------------------- the command
+def test_cli_batch_with_filters_and_chain_file(scans, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["batch", str(scans / "m0.ply"), str(scans / "m[12].ply"), "--out", str(out),
+                 "--scheduler", "sequential", "--no-progress"] + FLAGS) == 0
+    assert "3 files: 3 done" in capsys.readouterr().out
+    chain = tmp_path / "chain.toml"
+    Chain(STEPS).save(chain)
+    assert main(["batch", str(scans / "*.ply"), "--out", str(tmp_path / "npz"), "--chain", str(chain),
+                 "--format", "npz", "--scheduler", "sequential"]) == 0
+    for i in range(3):
+        a, b = read_mesh(out / f"m{i}.ply"), read_mesh(tmp_path / "npz" / f"m{i}.npz")
+        assert np.array_equal(a.vertex["height_smooth"].numpy(), b.vertex["height_smooth"].numpy())
+    capsys.readouterr()
+    assert main(["batch", str(scans / "*.ply"), "--out", str(out), "--chain", str(chain)]) == 0  # resumed
+    assert "3 skipped" in capsys.readouterr().out
+    for args, message in (([str(tmp_path / "no" / "*.ply")] + FLAGS, "no file matches"),
+                          ([str(scans / "*.ply")], "no filter given"),
+                          ([str(scans / "*.ply"), "-f", "hks:kk=1"], "no parameter 'kk'"),
+                          ([str(scans / "*.ply"), "-f", "scalar"], "another chain")):
+        assert main(["batch", *args, "--out", str(out), "--scheduler", "sequential"]) == 2
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err and err.count("\n") == 1
+
+
+def test_cli_batch_on_its_own_local_cluster(scans, tmp_path, capsys, monkeypatch):
+    pytest.importorskip("distributed")
+    out = tmp_path / "out"
+    assert main(["batch", str(scans / "*.ply"), "--out", str(out)] + FLAGS) == 0  # no --scheduler: Dask
+    assert "3 files: 3 done" in capsys.readouterr().out
+    assert main(["batch", str(scans / "*.ply"), "--out", str(tmp_path / "seq"), "--scheduler", "sequential"]
+                + FLAGS) == 0
+    _same_outputs(out, tmp_path / "seq")
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(o3dheat.batch, "run", interrupted)
+    assert main(["batch", str(scans / "*.ply"), "--out", str(out)] + FLAGS) == 130
+    assert "run the same command again to resume" in capsys.readouterr().err
+
+
+def test_progress_bar_on_request(scans, tmp_path, capsys):
+    run(STEPS[:1], scans / "*.ply", tmp_path / "o", scheduler="sequential", progress=True)
+    assert "3/3" in capsys.readouterr().err
