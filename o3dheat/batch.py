@@ -185,6 +185,10 @@ def _one(chain, src, dst, binary, single_threaded):
     except Exception as e:  # a failing file is a result, not the end of the batch
         log.debug("%s failed: %s", src, traceback.format_exc())
         return "failed", time.perf_counter() - t0, _message(e)
+    finally:  # the file's spectra serve no other file: free them before the next one's
+        from .spectrum import clear_cache
+
+        clear_cache()
 
 
 def _message(e):

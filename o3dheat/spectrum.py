@@ -153,6 +153,28 @@ _MEMORY_MAX = 8
 _DISK = None
 
 
+def memory_cache_max_bytes():
+    """Size budget of the in-memory cache: ``$O3DHEAT_MEMORY_CACHE_MB`` megabytes, default 1024.
+    Beyond it (or beyond 8 spectra) the least recently used spectra are dropped; the newest one is
+    always kept, whatever its size (the filters of a chain share it)."""
+    try:
+        return int(float(os.environ.get("O3DHEAT_MEMORY_CACHE_MB", "1024")) * 2**20)
+    except ValueError:
+        raise MeshError("O3DHEAT_MEMORY_CACHE_MB must be a number, got "
+                        f"{os.environ['O3DHEAT_MEMORY_CACHE_MB']!r}") from None
+
+
+def _nbytes(value):
+    """Bytes held by the arrays and sparse matrices among an object's attributes."""
+    total = 0
+    for v in (vars(value).values() if hasattr(value, "__dict__") else [value]):
+        if isinstance(v, np.ndarray):
+            total += v.nbytes
+        elif sp.issparse(v):
+            total += sum(getattr(v, a).nbytes for a in ("data", "indices", "indptr") if hasattr(v, a))
+    return total
+
+
 def set_cache(folder):
     """The disk folder used by :func:`shared_eigensolve` (and the filters): a folder, True
     (:func:`default_cache_dir`) or None (memory only, the default).
@@ -166,22 +188,35 @@ def set_cache(folder):
     _DISK = folder
 
 
+def clear_cache():
+    """Forget the spectra kept in memory (the disk cache stays).
+
+    Examples
+    --------
+    >>> import o3dheat.spectrum as s
+    >>> s.clear_cache()
+    """
+    _MEMORY.clear()
+
+
 def memoized(key, compute):
-    """``compute()``, remembered under ``key`` among the last 8 results (least recently used first
-    out): the one in-memory cache of spectra, for meshes and for operators built elsewhere."""
+    """``compute()``, remembered under ``key`` among the last results (least recently used first
+    out: at most 8 and :func:`memory_cache_max_bytes`, the newest always kept): the one in-memory
+    cache of spectra, for meshes and for operators built elsewhere."""
     if key in _MEMORY:
         _MEMORY.move_to_end(key)
-        return _MEMORY[key]
+        return _MEMORY[key][0]
     value = compute()
-    _MEMORY[key] = value
-    while len(_MEMORY) > _MEMORY_MAX:
+    _MEMORY[key] = (value, _nbytes(value))
+    budget = memory_cache_max_bytes()
+    while len(_MEMORY) > 1 and (len(_MEMORY) > _MEMORY_MAX or sum(b for _, b in _MEMORY.values()) > budget):
         _MEMORY.popitem(last=False)
     return value
 
 
 def shared_eigensolve(V, F, k=100, mass="consistent", cache=None):
     """The spectrum of ``(V, F)``, computed once per geometry and settings and then shared (the
-    last 8 in memory; on disk too with ``cache`` or :func:`set_cache`).
+    last few in memory, see :func:`memoized`; on disk too with ``cache`` or :func:`set_cache`).
 
     Parameters
     ----------

@@ -70,6 +70,9 @@ def test_sequential_table_outputs_and_resume(scans, tmp_path):
     assert t["input"].tolist() == [str(scans / f"m{i}.ply") for i in range(3)]
     assert t["output"].tolist() == [str(out / f"m{i}.ply") for i in range(3)]
     assert (t["seconds"] > 0).all() and (t["error"] == "").all()
+    import o3dheat.spectrum
+
+    assert len(o3dheat.spectrum._MEMORY) == 0  # a file's spectra are freed before the next file
     direct = Chain(STEPS)(read_mesh(scans / "m1.ply"))
     got, _ = _attributes(out / "m1.ply")
     assert set(got) == {"positions", "height", "height_smooth", "colors"}

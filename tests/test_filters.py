@@ -159,7 +159,7 @@ def test_colorize(sphere):
 def test_a_chain_solves_the_eigenproblem_once(sphere, monkeypatch):
     import o3dheat.spectrum as spectrum
 
-    o3dheat.spectrum._MEMORY.clear()
+    o3dheat.spectrum.clear_cache()
     calls = []
     real = spectrum.eigensolve
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: calls.append(1) or real(*a, **k))
@@ -301,12 +301,12 @@ def test_filters_on_point_clouds(operators):
 
 
 def test_disk_cache_skips_the_eigensolve(sphere, tmp_path):
-    o3dheat.spectrum._MEMORY.clear()
+    o3dheat.spectrum.clear_cache()
     flt.set_disk_cache(tmp_path)
     try:
         flt.apply(sphere, "hks", k=12)
         assert len(list(tmp_path.glob("spectrum-*.npz"))) == 1
-        o3dheat.spectrum._MEMORY.clear()  # a new session: the disk cache answers
+        o3dheat.spectrum.clear_cache()  # a new session: the disk cache answers
         spec = flt.shared_spectrum(sphere.vertex.positions.numpy(), sphere.triangle.indices.numpy(), k=12)
         assert spec.timings["cache"] is True
     finally:

@@ -9,7 +9,7 @@ from hypothesis import given, settings, strategies as st
 
 import o3dheat
 from o3dheat.linalg import available_backends
-from conftest import grid, icosphere
+from conftest import grid, icosphere, torus
 
 
 def sphere_truth(k, R=1.0):
@@ -446,7 +446,7 @@ def test_one_cache_bounded_cleaned_and_in_the_platform_folder(tmp_path, monkeypa
     assert len(kept) == 1  # over the budget: only the newest stays
     assert o3dheat.eigensolve((V, F), k=7, cache=folder).timings["cache"] is True  # the newest is kept
     # the filters, the robust point-cloud operators and user code share the one memory cache
-    S._MEMORY.clear()
+    S.clear_cache()
     a = S.shared_eigensolve(V, F, k=6)
     assert o3dheat.filters.shared_spectrum(V, F, k=6) is a and len(S._MEMORY) == 1
 
@@ -461,3 +461,27 @@ def test_eigensolve_refuses_what_does_not_fit_in_memory(monkeypatch, irregular_m
         o3dheat.eigensolve(irregular_mesh, k=20, method="lanczos")
     with pytest.raises(la.OutOfMemory, match="dense eigensolve"):
         o3dheat.eigensolve(irregular_mesh, k=20, method="dense")
+
+
+def test_the_memory_cache_is_bounded_in_bytes_and_keeps_the_newest(monkeypatch):
+    import o3dheat.spectrum as S
+
+    S.clear_cache()
+    meshes = [icosphere(2), icosphere(3), torus()]
+    sizes = []
+    for V, F in meshes:
+        S.shared_eigensolve(V, F, k=6)
+        sizes.append(list(S._MEMORY.values())[-1][1])
+    assert len(S._MEMORY) == 3 and min(sizes) > 0
+    monkeypatch.setenv("O3DHEAT_MEMORY_CACHE_MB", str((sizes[1] + sizes[2]) / 2**20))
+    V, F = icosphere(1)
+    S.shared_eigensolve(V, F, k=6)  # over budget: the least recently used go first
+    assert len(S._MEMORY) == 2
+    monkeypatch.setenv("O3DHEAT_MEMORY_CACHE_MB", "0")
+    newest = S.shared_eigensolve(*meshes[0], k=6)
+    assert len(S._MEMORY) == 1 and S.shared_eigensolve(*meshes[0], k=6) is newest  # the newest stays
+    monkeypatch.setenv("O3DHEAT_MEMORY_CACHE_MB", "lots")
+    with pytest.raises(o3dheat.MeshError, match="O3DHEAT_MEMORY_CACHE_MB"):
+        S.shared_eigensolve(*meshes[1], k=6)
+    S.clear_cache()
+    assert len(S._MEMORY) == 0
