@@ -473,6 +473,13 @@ def _k_arcs(f, ptr, adj, boundary, kind, low, high, crit):
             u = w
         return -uf[r] - 1
 
+    def push(keys, start, end, key):  # key appended unless keys[start:end] has it: the new end
+        for j in range(start, end):
+            if keys[j] == key:
+                return end
+        keys[end] = key
+        return end + 1
+
     uf0 = np.empty(n, np.int32)  # >= 0: the parent vertex; < 0: a root, its id -(uf + 1)
     uf1 = np.empty(n + 1, np.int32)
     cap0, cap1 = 0, 0
@@ -502,29 +509,11 @@ def _k_arcs(f, ptr, adj, boundary, kind, low, high, crit):
             u = adj[k]
             fu = f[u]
             if (fu < fs) | ((fu == fs) & (u < s)):
-                key = hi_s | find(uf0, u)
-                new = True
-                for j in range(j0, k0):
-                    new &= keys0[j] != key
-                if new:
-                    keys0[k0] = key
-                    k0 += 1
+                k0 = push(keys0, j0, k0, hi_s | find(uf0, u))
             else:
-                key = hi_s | find(uf1, u)
-                new = True
-                for j in range(j1, k1):
-                    new &= keys1[j] != key
-                if new:
-                    keys1[k1] = key
-                    k1 += 1
+                k1 = push(keys1, j1, k1, hi_s | find(uf1, u))
         if boundary[s]:
-            key = hi_s | nc
-            new = True
-            for j in range(j1, k1):
-                new &= keys1[j] != key
-            if new:
-                keys1[k1] = key
-                k1 += 1
+            k1 = push(keys1, j1, k1, hi_s | nc)
     return keys0[:k0], keys1[:k1], shift
 
 

@@ -19,23 +19,13 @@ machine should be otherwise idle.
 from __future__ import annotations
 
 import argparse
-import resource
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-
-def _cpu():
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
-
-
-def _worker_cpu():
-    import resource
-
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_study import _cpu, _worker_cpu  # noqa: E402  (CPU seconds here and in a worker)
 
 
 def _meshes(folder, files, vertices):
