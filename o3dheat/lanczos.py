@@ -50,11 +50,12 @@ def _runs(idx, gap=8):
     return list(zip(starts.tolist(), ends.tolist()))
 
 
-def _b_orthonormalize_block(W, rows, rng, BW=None):
+def _b_orthonormalize_block(W, rows, rng, BW=None, out=None):
     """B-orthonormalize the columns of W (n, b): returns Q, R, BQ with W = Q R, Qᵀ B Q = I.
 
     ``rows`` is a :class:`_Rows` of B. ``BW`` (= B W), when given, saves the sparse product;
-    dependent columns are replaced by fresh random ones (their R rows are then 0)."""
+    dependent columns are replaced by fresh random ones (their R rows are then 0). ``out``, a
+    pair of (n, b) arrays other than W and BW, receives Q and BQ (no fresh memory to fault in)."""
     for _ in range(3):
         if BW is None:
             BW = rows.spmul(0, W)
@@ -64,7 +65,8 @@ def _b_orthonormalize_block(W, rows, rng, BW=None):
             R = np.linalg.cholesky(G).T  # upper triangular
             if np.min(np.diag(R)) > 1e-10 * np.max(np.diag(R)):
                 Rinv = sla.lapack.dtrtri(R)[0]  # b x b: LAPACK directly (solve_triangular costs ms)
-                return rows.dot(W, Rinv), R, rows.dot(BW, Rinv)
+                q, bq = out if out is not None else (None, None)
+                return rows.dot(W, Rinv, out=q), R, rows.dot(BW, Rinv, out=bq)
         except np.linalg.LinAlgError:
             pass
         w, U = np.linalg.eigh(G)
@@ -119,20 +121,26 @@ class _Rows:
             return
         parallel.run(lambda a, z: np.subtract(Y[a:z], X[a:z] @ C, out=Y[a:z]), self.parts)
 
-    def dot(self, X, C):
-        """``X @ C`` (a new C-ordered array)."""
+    def dot(self, X, C, out=None):
+        """``X @ C`` (into ``out``, a C-ordered array not overlapping X, or a new one)."""
+        if out is None:
+            out = np.empty((X.shape[0], C.shape[1]))
         if len(self.parts) == 1:
-            return X @ C
-        out = np.empty((X.shape[0], C.shape[1]))
+            return np.matmul(X, C, out=out)
         parallel.run(lambda a, z: np.matmul(X[a:z], C, out=out[a:z]), self.parts)
         return out
 
-    def spmul(self, i, Y):
-        """``M_i @ Y`` for the i-th sparse matrix given at construction."""
+    def spmul(self, i, Y, out=None):
+        """``M_i @ Y`` for the i-th sparse matrix given at construction (into ``out``, an array
+        not overlapping Y, or a new one)."""
         blocks = self.blocks[i]
         if len(blocks) == 1:
-            return blocks[0] @ Y
-        out = np.empty((self.n, Y.shape[1]))
+            if out is None:
+                return blocks[0] @ Y
+            out[...] = blocks[0] @ Y
+            return out
+        if out is None:
+            out = np.empty((self.n, Y.shape[1]))
         parallel.run(lambda j, a, z: out.__setitem__(slice(a, z), blocks[j] @ Y),
                      [(j, a, z) for j, (a, z) in enumerate(self.parts)])
         return out
@@ -154,7 +162,8 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
     L, B : (n, n) scipy.sparse matrices
         Symmetric; ``B`` positive definite, ``L − σ B`` positive definite.
     solve : callable
-        ``solve(Y)`` returns ``(L − σ B)^{-1} Y`` for ``Y`` of shape ``(n, b)``.
+        ``solve(Y)`` returns ``(L − σ B)^{-1} Y`` for ``Y`` of shape ``(n, b)``. It may return
+        the same array every time (no solution is used after the next call).
     k : int
         Number of eigenpairs, ``k < n``.
     sigma : float
@@ -229,6 +238,11 @@ def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, s
             raise MeshError(f"the start block must be a finite ({n}, {b}) array, got shape {start.shape}")
     W, _, BW = _b_orthonormalize_block(rng.standard_normal((n, b)) if start is None else start, rows, rng)
     BV = [None, BW]  # B times the last two blocks (older, newer): saves sparse products
+    # the (n, b) arrays of every step live in buffers made once: at a million vertices a fresh
+    # 64 MB array is a fresh mmap whose pages fault in one by one (seconds of system time). B W
+    # rotates through three (the newest and the two kept in BV), B Y and W through one each.
+    by_buf, w_buf = np.empty((n, b)), np.empty((n, b))
+    bw_ring, turn = [np.empty((n, b)) for _ in range(3)], 0
     m = 0
     after_restart = False
     solves = restarts = biggest = steps = full = 0
@@ -240,14 +254,14 @@ def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, s
         biggest = max(biggest, m)
         Y = solve(BW)
         solves += b
-        BY = rows.spmul(0, Y)
+        BY = rows.spmul(0, Y, out=by_buf)
         # local orthogonalization: the last two blocks (all of the kept part right after a restart)
         lo = 0 if after_restart else max(0, m - 2 * b)
         Vl = V[:, lo:m]
         Cl = rows.inner(Vl, BY)
         rows.sub(Y, Vl, Cl)
         if after_restart:
-            BY = rows.spmul(0, Y)
+            BY = rows.spmul(0, Y, out=by_buf)
         else:
             BV = [BV[1], BW]
             _sub_bv(BY, BV, Cl, rows)
@@ -263,7 +277,7 @@ def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, s
             for a, z in _runs(np.flatnonzero(rel > _ETA)):
                 rows.sub(Y, V[:, a:z], C[a:z])
             rows.sub(Y, Vl, C[lo:m])
-            BY = rows.spmul(0, Y)
+            BY = rows.spmul(0, Y, out=by_buf)
         else:
             rows.sub(Y, Vl, C[lo:m])
             _sub_bv(BY, BV, C[lo:m], rows)
@@ -271,7 +285,8 @@ def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, s
             BV = [None, BW]
         after_restart = False
         T[lo:m, m - b:m] = Cl + C[lo:m]
-        W, R, BW = _b_orthonormalize_block(Y, rows, rng, BY)
+        turn = (turn + 1) % 3
+        W, R, BW = _b_orthonormalize_block(Y, rows, rng, BY, out=(w_buf, bw_ring[turn]))
         done_filling = m + b > m_max
         if m < k + b and not done_filling:
             continue
@@ -302,7 +317,7 @@ def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, s
             after_restart = True
     _rotate(V[:, c:], m - c, Z, k - c)  # the Ritz vectors, in the first k columns
     nu = np.concatenate([locked_nu, nu[:k - c]])
-    del Vl, BV, V
+    del Vl, BV, V, W, BW, Y, BY, by_buf, w_buf, bw_ring  # before the refinement: peak memory
     VT.resize((k, n), refcheck=False)  # the Ritz vectors stay, the rest of the basis is freed
     V = VT.T
     info = {"solves": solves, "restarts": restarts, "basis": biggest, "block": b,

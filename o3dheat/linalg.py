@@ -140,21 +140,32 @@ class Factor:
         self._solve = solve
         self.shape = shape
 
-    def solve(self, b):
+    def solve(self, b, out=None):
         """Solve ``A x = b``.
 
         Parameters
         ----------
         b : (n,) or (n, c) float64 array_like
+        out : ndarray, optional
+            A C-ordered float64 array of the shape of ``b`` (not overlapping it) to hold ``x``:
+            repeated solves then reuse its memory.
 
         Returns
         -------
-        x : ndarray of the same shape as ``b``
+        x : ndarray of the same shape as ``b`` (``out`` when given)
         """
         b = np.asarray(b, dtype=np.float64)
         if b.shape[0] != self.shape[0]:
             raise SolverError(f"right-hand side has {b.shape[0]} rows, the matrix {self.shape[0]}")
-        x = self._solve(b)
+        if out is None:
+            x = self._solve(b)
+        else:
+            if out.shape != b.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+                raise SolverError(f"out must be a C-ordered float64 array of shape {b.shape}")
+            into = getattr(self._solve, "into", None)
+            x = into(b, out) if into is not None else out
+            if into is None:
+                np.copyto(out, self._solve(b))
         if not np.all(np.isfinite(x)):
             raise SolverError(f"the {self.backend} solve produced non-finite values: the matrix is "
                               "singular or badly conditioned")
@@ -326,6 +337,7 @@ class _CholmodFactor:
         self._contexts = [(_common(lib, mode), _DENSE_P(), _DENSE_P(), _DENSE_P())]
         self._finalizer = weakref.finalize(self, _free, lib, self._handle, self._contexts)
         self._lock = threading.Lock()
+        self._fbuf = None
         c = self._contexts[0][0]
         self._handle.value = lib.cholmod_analyze(ctypes.byref(S), c)
         if not self._handle.value:
@@ -368,19 +380,25 @@ class _CholmodFactor:
         out[...] = np.ctypeslib.as_array(ctypes.cast(X.contents.x, ctypes.POINTER(ctypes.c_double)),
                                          shape=(cols, d)).T[:rows]
 
-    def solve(self, b, threads=None):
+    def solve(self, b, threads=None, out=None):
         b = np.asarray(b, dtype=np.float64)
-        out = np.empty(b.shape)
+        out = np.empty(b.shape) if out is None else out
         if b.size == 0:
             return out
-        # column-major once (CHOLMOD's layout): each group is then a contiguous slice, not a copy
-        b2, out2 = np.asfortranarray(b.reshape(self.n, -1)), out.reshape(self.n, -1)
+        b2, out2 = b.reshape(self.n, -1), out.reshape(self.n, -1)
         # CHOLMOD's simplicial solve works on groups of 4 columns (1-, 2-, 3- and 4-column kernels
         # round differently): the threads get whole groups, so results do not depend on their count
         groups = -(-b2.shape[1] // 4)
         t = min(parallel.get_threads() if threads is None else threads, groups)
         cuts = [min(4 * round(j * groups / t), b2.shape[1]) for j in range(t + 1)]
         with self._lock:
+            # column-major once (CHOLMOD's layout), into a buffer kept for the next solve of the
+            # same shape (a fresh (n, b) array faults its pages in anew): each group is a slice
+            if not b2.flags.f_contiguous:
+                if self._fbuf is None or self._fbuf.shape != b2.shape:
+                    self._fbuf = np.empty(b2.shape, order="F")
+                np.copyto(self._fbuf, b2)
+                b2 = self._fbuf
             while len(self._contexts) < t:
                 self._contexts.append((_common(self._lib, self._mode), _DENSE_P(), _DENSE_P(), _DENSE_P()))
             parallel.run(lambda j: self._solve_columns(j, b2[:, cuts[j]:cuts[j + 1]], out2[:, cuts[j]:cuts[j + 1]]),
@@ -420,17 +438,22 @@ def _fallback_solve(factor, A, mode):
     binding (the matrix is kept for that: about a tenth of the factor's memory)."""
     state = {"solve": None}
 
-    def solve(b):
+    def solve(b, out=None):
         if state["solve"] is None:
             try:
-                return factor.solve(b)
+                return factor.solve(b, out=out)
             except (OutOfMemory, MemoryError):
                 raise
             except Exception as e:  # noqa: BLE001 - any failure of the binding
                 _warn_binding(e)
                 state["solve"] = _sksparse(A, mode)
-        return state["solve"](b)
+        x = state["solve"](b)
+        if out is None:
+            return x
+        np.copyto(out, x)
+        return out
 
+    solve.into = lambda b, out: solve(b, out)
     return solve
 
 

@@ -350,8 +350,16 @@ def _solve_lanczos(L, B, k, sigma, backend, seed, tol, block):
     fac = factorize(L - sigma * B, backend=backend)
     t1 = time.perf_counter()
     used = fac.backend
-    _, Xv, info = block_lanczos(L, B, fac.solve, k, sigma, block=block, tol=max(tol, 1e-14), seed=seed,
+    buf = {}  # block_lanczos keeps no solution past the next solve: one buffer per shape serves all
+
+    def solve(Y):
+        if Y.shape not in buf:
+            buf[Y.shape] = np.empty(Y.shape)
+        return fac.solve(Y, out=buf[Y.shape])
+
+    _, Xv, info = block_lanczos(L, B, solve, k, sigma, block=block, tol=max(tol, 1e-14), seed=seed,
                                 refine=False)
+    del buf, solve
     del fac  # free the factorization before the Rayleigh-Ritz (peak memory)
     lam, X = rayleigh_ritz(L, B, Xv, overwrite=True)  # in the memory of the basis
     log.info("block Lanczos: %s", info)

@@ -253,3 +253,16 @@ def test_available_memory_sees_an_address_space_limit():
             "m = la.available_memory(); print(m is not None and m < 4 * 2**30)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.stdout.strip() == "True", out.stderr[-500:]
+
+
+@pytest.mark.parametrize("backend", la.available_backends())
+def test_solve_into_a_given_array(spd, backend):
+    f = la.factorize(spd, backend=backend)
+    b = np.random.default_rng(4).standard_normal((spd.shape[0], 6))
+    out = np.full(b.shape, np.nan)
+    x = f.solve(b, out=out)
+    assert x is out
+    np.testing.assert_array_equal(out, f.solve(b))
+    for bad in (np.empty((spd.shape[0], 5)), np.empty(b.shape, order="F"), np.empty(b.shape, np.float32)):
+        with pytest.raises(SolverError, match="out must be"):
+            f.solve(b, out=bad)
