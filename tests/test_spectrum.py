@@ -485,3 +485,14 @@ def test_the_memory_cache_is_bounded_in_bytes_and_keeps_the_newest(monkeypatch):
         S.shared_eigensolve(*meshes[1], k=6)
     S.clear_cache()
     assert len(S._MEMORY) == 0
+
+
+def test_the_supernodal_path_gives_the_same_spectrum(monkeypatch):
+    import o3dheat.linalg as la
+
+    V, F = torus()
+    ref = o3dheat.eigensolve((V, F), k=40, method="lanczos")  # simplicial LDLᵀ (small mesh)
+    monkeypatch.setattr(la, "SUPERNODAL_MIN_N", 0)  # large meshes' factorization, on a small one
+    s = o3dheat.eigensolve((V, F), k=40, method="lanczos")
+    np.testing.assert_allclose(s.eigenvalues, ref.eigenvalues, rtol=1e-9, atol=1e-9)
+    assert s.residuals.max() < 1e-8
