@@ -61,7 +61,10 @@ class Site:
         return [k for k in self.attrs]
 
     def attribute(self, name, column=None):
-        """A vertex attribute as float64 (n,) or (n, c); ``column`` picks one column."""
+        """A vertex attribute as float64 (n,) or (n, c) (trailing axes flattened row-major);
+        ``column`` picks one column (:func:`o3dheat.filters.one_column`)."""
+        from o3dheat.filters import one_column
+
         if name not in self.attrs:
             raise MeshError(f"no vertex attribute {name!r}; this geometry has: {', '.join(self.names())}")
         a = self.attrs[name].numpy()
@@ -69,23 +72,18 @@ class Site:
             raise MeshError(f"attribute {name!r} has {len(a)} rows for {self.n} vertices")
         a = a.astype(np.float64).reshape(self.n, -1) if a.ndim > 1 else a.astype(np.float64)
         if column is not None:
-            if a.ndim == 1 and column in (0, -1):
-                return a
-            if a.ndim == 1 or not -a.shape[1] <= column < a.shape[1]:
-                cols = 1 if a.ndim == 1 else a.shape[1]
-                raise MeshError(f"attribute {name!r} has {cols} column(s): column {column} does not exist")
-            a = a[:, column]
+            a = one_column(a, name, column)
         if not np.all(np.isfinite(a)):
             raise MeshError(f"attribute {name!r} has NaN or infinite values")
         return a
 
     def scalar(self, name, column=None):
+        """One column of an attribute, (n,), by the filters' rule (:func:`o3dheat.filters.one_column`):
+        a multi-column attribute without ``column`` is refused, listing its columns."""
+        from o3dheat.filters import one_column
+
         a = self.attribute(name, column)
-        if a.ndim == 2:
-            if a.shape[1] != 1:
-                raise MeshError(f"attribute {name!r} has {a.shape[1]} columns: choose one with column=")
-            a = a[:, 0]
-        return a
+        return a if column is not None else one_column(a, name)
 
     def scalar_on_surface(self, name, column=None):
         """(f on the input vertices, V, F of the surface, f on the surface vertices)."""

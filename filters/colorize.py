@@ -22,7 +22,10 @@ class Colorize:
     attribute : str
         The field.
     column : int or None
-        One column of a multi-column attribute (default: the last one).
+        Which column of a multi-column attribute, (n, c) or (n, a, b...) flattened row-major like
+        its PLY properties ``<attribute>_0 ..``: 0-based, negative counts from the end (-1 is the
+        last). Needed when the attribute has several columns: without it the filter refuses,
+        listing the columns (the rule of every filter and of ``o3dheat figure --column``).
     colormap : str
         Any matplotlib colormap name ("coolwarm", "viridis", ...).
     range : list of 2 float or None
@@ -35,6 +38,9 @@ class Colorize:
     >>> import open3d as o3d, o3dheat.filters as flt
     >>> m = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10), "scalar", kind="height")
     >>> flt.apply(m, "colorize", attribute="height").vertex["colors"].shape
+    SizeVector[182, 3]
+    >>> m = flt.apply(m, "hks", k=20, scales=4)  # (n, 4): pick a column
+    >>> flt.apply(m, "colorize", attribute="hks", column=-1).vertex["colors"].shape
     SizeVector[182, 3]
     """
 
@@ -56,9 +62,7 @@ class Colorize:
         if self.colormap not in colormaps:
             raise MeshError(f"unknown colormap {self.colormap!r} (matplotlib names: viridis, coolwarm, ...)")
         site = Site(geometry)
-        f = site.attribute(self.attribute)
-        if f.ndim == 2 or self.column is not None:
-            f = site.attribute(self.attribute, -1 if self.column is None else self.column)
+        f = site.scalar(self.attribute, self.column)
         lo, hi = self.range if self.range is not None else np.percentile(f, [2, 98])
         s = np.clip((f - lo) / (hi - lo), 0, 1) if hi > lo else np.full(f.shape, 0.5)
         rgb = colormaps[self.colormap](s)[:, :3].astype(np.float32)

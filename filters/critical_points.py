@@ -22,7 +22,10 @@ class CriticalPointsFilter:
     attribute : str
         The field.
     column : int or None
-        One column of a multi-column attribute (for example a scale of ``*_smooth``).
+        Which column of a multi-column attribute, (n, c) or (n, a, b...) flattened row-major like
+        its PLY properties ``<attribute>_0 ..``: 0-based, negative counts from the end (-1 is the
+        last). Needed when the attribute has several columns: without it the filter refuses,
+        listing the columns (the rule of every filter and of ``o3dheat figure --column``).
     delta : float or None
         Keep only the critical points of the δ-simplification (persistence >= delta, units of
         the field) and the essential ones; the others are labelled 0.

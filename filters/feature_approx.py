@@ -20,7 +20,10 @@ class FeatureApprox:
     attribute : str
         The field.
     column : int or None
-        One column of a multi-column attribute.
+        Which column of a multi-column attribute, (n, c) or (n, a, b...) flattened row-major like
+        its PLY properties ``<attribute>_0 ..``: 0-based, negative counts from the end (-1 is the
+        last). Needed when the attribute has several columns: without it the filter refuses,
+        listing the columns (the rule of every filter and of ``o3dheat figure --column``).
     scale : int
         Which of the paper's 10 scales, 1..10 (when ``t`` is not given).
     t : float or None

@@ -17,9 +17,13 @@ class HeatSmooth:
     Parameters
     ----------
     attribute : str
-        The field; a multi-column attribute needs ``column`` when several times are asked.
+        The field. A multi-column attribute (n, c) is smoothed column by column at one time
+        (``times`` of one value): output (n, c); at several times it needs ``column``.
     column : int or None
-        One column of a multi-column attribute.
+        Which column of a multi-column attribute, (n, c) or (n, a, b...) flattened row-major like
+        its PLY properties ``<attribute>_0 ..``: 0-based, negative counts from the end (-1 is the
+        last). Needed to smooth a multi-column attribute at several times: without it the filter
+        refuses, listing the columns (the rule of every filter and of ``o3dheat figure --column``).
     times : list of float or None
         Times (paper convention ``exp(−λ t / 2)``). Default: the paper's ``scales``.
     scales : int
@@ -69,11 +73,16 @@ class HeatSmooth:
     def __call__(self, geometry):
         site = Site(geometry, self.operators)
         f = site.attribute(self.attribute, self.column)
+        count = len(self.times) if self.times else self.scales  # checked before the eigensolve
+        if f.ndim == 2 and f.shape[1] > 1 and count > 1:
+            c = f.shape[1]
+            raise MeshError(f"attribute {self.attribute!r} has {c} columns (0..{c - 1}): pick one with column=N "
+                            "(0 is the first, -1 the last) to smooth it at several times, or give one time "
+                            "(times=T) to smooth every column")
+        if f.ndim == 2 and f.shape[1] == 1 and count > 1:  # one column: (n, T) like an (n,) field
+            f = f[:, 0]
         K = kernel_of(site, self.k, self.variant, self.normalize)
         t = times_of(K, self.times, self.scales, self.grid)
-        if f.ndim == 2 and len(t) > 1:
-            raise MeshError(f"attribute {self.attribute!r} has {f.shape[1]} columns: smooth one column "
-                            "(column=) at several times, or all columns at one time")
         g = K.smooth(site.to_surface(f), t if len(t) > 1 else float(t[0]))
         site.set(self.output or f"{self.attribute}_smooth", site.from_surface(g))
         return site.result()

@@ -1,13 +1,16 @@
 """The ``o3dheat`` command: ``info``, ``repair``, ``filters``, ``apply``, ``batch``, ``spectrum``, ``figure``,
 ``study``, ``demo``.
 
-User errors (missing files, unknown filters or parameters, bad values) print one line starting
-with ``o3dheat: error:`` and exit with status 2; no traceback. ``-v`` logs what happens.
+User errors (missing files, unknown filters or parameters, bad values, an output in a folder
+that does not exist) print one line starting with ``o3dheat: error:`` and exit with status 2; no
+traceback; they are found before any computation. ``-v`` logs what happens; ``--version`` prints
+the version.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import logging
 import sys
 from pathlib import Path
@@ -37,9 +40,10 @@ Vertex attributes of a PLY input are carried over. The input is never overwritte
   o3dheat apply in.ply out.ply -f hks:scales=16 --save-chain chain.toml
   o3dheat apply other.obj other.ply --chain chain.toml
 
-parameters: -f NAME:key=value,key=value; list values with + (times=0.01+0.02+0.05);
-none/true/false are read as such. Outputs are .ply or .npz; the input is never overwritten
-unless --overwrite is given.""",
+parameters: -f NAME:key=value,key=value; list values with + (times=0.01+0.02+0.05), not
+commas (they separate the parameters); none/true/false are read as such. A filter that reads one
+column of a multi-column attribute needs column=N (0-based, -1 the last). Outputs are .ply or
+.npz, in a folder that exists; the input is never overwritten unless --overwrite is given.""",
     "batch": """examples:
   o3dheat batch 'scans/*.ply' --out results/ -f scalar:kind=height \\
       -f heat_smooth:attribute=height,k=100 -f colorize:attribute=height_smooth,column=4
@@ -77,7 +81,10 @@ study.toml:
 An interrupted study resumes: run the same command again.""",
     "figure": """examples:
   o3dheat figure mesh.ply -o figures/                 # noisy height field, the paper's figure kinds
-  o3dheat figure mesh.ply -o figures/ --attribute f -k 100 --up y   # a scan with y up""",
+  o3dheat figure mesh.ply -o figures/ --attribute f -k 100 --up y   # a scan with y up
+  o3dheat figure out.ply -o figures/ --attribute hks --column 4      # one column of an (n, c) attribute
+
+The folder is created (with its parents) before any computation.""",
 }
 
 
@@ -89,11 +96,15 @@ def _sub(sub, name, help_text):
 def _parser():
     p = argparse.ArgumentParser(prog="o3dheat", description="Multi-scale heat-kernel analysis for Open3D meshes.",
                                 epilog="run 'o3dheat COMMAND --help' for examples of each command")
+    from . import __version__
+
     p.add_argument("-v", "--verbose", action="store_true", help="log what happens")
+    p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     d = _sub(sub, "demo", "run the demo on the embedded bunny")
-    d.add_argument("--out", help="output PLY (default: o3dheat-demo/bunny_heat.ply, or bunny_heat-N.ply when "
-                                 "that exists: an earlier result is never replaced)")
+    d.add_argument("--out", help="output PLY, in a folder that exists (default: o3dheat-demo/bunny_heat.ply, "
+                                 "folder created, or bunny_heat-N.ply when that exists: an earlier result is "
+                                 "never replaced)")
     d.add_argument("--overwrite", action="store_true", help="allow replacing an existing --out")
     d.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
     d.add_argument("--reduction", type=float, default=0.6, help="decimation fraction (default: %(default)s)")
@@ -141,16 +152,20 @@ def _parser():
     s.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
     s.add_argument("--mass", default="consistent", choices=MASS_KINDS,
                    help="mass of L x = λ B x: consistent (the paper's), lumped, voronoi or identity (B := I)")
-    s.add_argument("-o", "--out", required=True, help="output .npz (eigenvalues, eigenvectors, residuals)")
+    s.add_argument("-o", "--out", required=True,
+                   help="output .npz (eigenvalues, eigenvectors, residuals), in a folder that exists")
     s.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
     st = _sub(sub, "study", "robustness of descriptors across resamplings (a table and plots)")
     st.add_argument("config", help="study TOML file")
-    st.add_argument("--out", required=True, help="output folder (tasks/, study.csv, plots)")
+    st.add_argument("--out", required=True, help="output folder, created (tasks/, study.csv, plots)")
     st.add_argument("--scheduler", help="'sequential', or a Dask scheduler address (default: a local cluster)")
     g = _sub(sub, "figure", "draw the paper's kinds of figures (Figs. 1-7) for a mesh")
     g.add_argument("input", help="mesh file")
     g.add_argument("-o", "--out", required=True, help="output folder (created)")
     g.add_argument("--attribute", help="vertex attribute to study (default: height + noise)")
+    g.add_argument("--column", type=int, metavar="N",
+                   help="the column of a multi-column --attribute (0-based, -1 the last); needed when it has "
+                        "several")
     g.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
     g.add_argument("--noise", type=float, default=0.1, help="noise added to the height, relative (default: %(default)s)")
     g.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
@@ -170,16 +185,33 @@ def _parse_filter(text):
     cls = flt._class(name)
     hints = flt._hints(cls)
     params = {}
-    for item in filter(None, (s.strip() for s in rest.split(","))):
+    items = [s.strip() for s in rest.split(",") if s.strip()]
+    for i, item in enumerate(items):
         key, eq, value = item.partition("=")
         key = key.strip()
         if not eq:
+            before = items[i - 1].partition("=") if i else ("", "", "")
+            if before[1] and _is_list(hints.get(before[0].strip())):  # times=0.01,0.05
+                more = [item, *itertools.takewhile(lambda t: "=" not in t, items[i + 1:])]
+                example = f"{before[0].strip()}={'+'.join([before[2].strip()] + more)}"
+                raise MeshError(f"-f {text!r}: {item!r} is not key=value: write lists with +: {example}")
             raise MeshError(f"-f {text!r}: expected key=value, got {item!r}")
         if key not in hints:
             fields = ", ".join(p.name for p in flt.describe(name)["parameters"])
             raise MeshError(f"filter {name!r} has no parameter {key!r}; its parameters: {fields}")
         params[key] = flt.parse_value(value, hints.get(key, typing.Any))
     return name, params
+
+
+def _is_list(tp):
+    """Whether a parameter annotation is a list type (possibly optional)."""
+    import typing
+
+    if tp is None:
+        return False
+    if typing.get_origin(tp) in (tuple, list):
+        return True
+    return any(typing.get_origin(a) in (tuple, list) for a in typing.get_args(tp))
 
 
 def _progress(total):
@@ -219,6 +251,31 @@ def _check_output(path, overwrite):
         raise MeshError(f"the folder {path.parent} does not exist: create it first")
     if path.exists() and not overwrite:
         raise MeshError(f"{path} exists: add --overwrite to replace it")
+
+
+def _check_folder(path, option):
+    """Refuse, without creating anything, an output folder that cannot be created: a file, or under
+    a file or a folder we cannot write in."""
+    import os
+
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise MeshError(f"{path} is a file: {option} takes a folder")
+    parent = path
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if parent != path and (not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK)):
+        why = "a file" if not parent.is_dir() else "not writable"
+        raise MeshError(f"cannot create the folder {path} ({option}): {parent} is {why}")
+
+
+def _output_folder(path, option):
+    """Create an output folder (and its parents) before any computation, or MeshError."""
+    _check_folder(path, option)
+    try:
+        Path(path).mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise MeshError(f"cannot create the folder {path} ({option}): {e.strerror}") from None
 
 
 def _chain(args):
@@ -329,8 +386,7 @@ def _spectrum(args):
     out = Path(args.out)
     if out.suffix.lower() != ".npz":
         raise MeshError(f"the spectrum is written as .npz: {out}")
-    if out.exists() and not args.overwrite:
-        raise MeshError(f"{out} exists: add --overwrite to replace it")
+    _check_output(out, args.overwrite)
     if args.k < 1:
         raise MeshError(f"-k must be at least 1, got {args.k}")
     s = eigensolve(read_mesh(args.input), k=args.k, mass=args.mass)
@@ -341,6 +397,7 @@ def _spectrum(args):
 
 
 def _figure(args):
+    from .filters import one_column
     from .io import read_mesh
     from .plot import paper_figures
 
@@ -350,13 +407,16 @@ def _figure(args):
     if (out / "index.md").exists() and not args.overwrite:
         raise MeshError(f"{out} holds the figures of an earlier run: add --overwrite to replace them, or "
                         "choose another folder")
+    if args.column is not None and not args.attribute:
+        raise MeshError("--column picks a column of --attribute: give --attribute too")
     mesh = read_mesh(args.input)
     field = None
     if args.attribute:
         if args.attribute not in mesh.vertex:
             raise MeshError(f"no vertex attribute {args.attribute!r}; the mesh has: "
                             f"{', '.join(k for k in mesh.vertex)}")
-        field = mesh.vertex[args.attribute].numpy()
+        field = one_column(mesh.vertex[args.attribute].numpy(), args.attribute, args.column, option="--column ")
+    _output_folder(out, "-o")
     index = paper_figures(mesh, args.out, field=field, k=args.k, noise=args.noise, seed=args.seed,
                           name=Path(args.input).stem, up=args.up)
     print(f"wrote {index} and its figures")
@@ -366,8 +426,10 @@ def _study(args):
     from .plot import study as plot_study
     from .study import load_config, robustness_study
 
-    kw = load_config(args.config)
     out = Path(args.out)
+    _check_folder(out, "--out")  # before the config's meshes are read
+    kw = load_config(args.config)
+    _output_folder(out, "--out")
     table = robustness_study(out=out, scheduler=args.scheduler, **kw)
     ok = table[table["error"].fillna("") == ""]
     failed = table[table["error"].fillna("") != ""]
@@ -425,8 +487,10 @@ def main(argv=None):
                 out, i = Path("o3dheat-demo") / "bunny_heat.ply", 1
                 while out.exists():
                     out, i = Path("o3dheat-demo") / f"bunny_heat-{i}.ply", i + 1
-            elif Path(out).exists() and not args.overwrite:
-                raise MeshError(f"{out} exists: add --overwrite to replace it")
+            else:
+                _check_output(Path(out), args.overwrite)
+            if not Path(out).parent.is_dir():  # the default folder, created before the work
+                _output_folder(Path(out).parent, "--out")
             run(out=out, k=args.k, reduction=args.reduction, seed=args.seed)
         elif args.command == "info":
             from .io import read_geometry

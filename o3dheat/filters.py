@@ -40,7 +40,7 @@ import numpy as np
 from .errors import MeshError
 
 __all__ = ["GROUP", "names", "describe", "get", "apply", "Chain", "Parameter", "shared_spectrum",
-           "set_disk_cache", "parse_value", "refresh"]
+           "set_disk_cache", "parse_value", "refresh", "one_column", "plain_text"]
 
 GROUP = "o3dheat.filters"
 
@@ -147,15 +147,18 @@ def describe(name):
     Returns
     -------
     dict
-        ``name``, ``summary`` (first docstring line), ``doc`` (whole docstring), ``outputs``
-        (attribute names it writes, when declared) and ``parameters`` (list of
-        :class:`Parameter`).
+        ``name``, ``summary`` (the docstring's first paragraph on one line, as plain text:
+        :func:`plain_text`), ``doc`` (whole docstring, as written), ``outputs`` (attribute names
+        it writes, when declared) and ``parameters`` (list of :class:`Parameter`, their help as
+        plain text).
 
     Examples
     --------
     >>> import o3dheat.filters as flt
     >>> [p.name for p in flt.describe("hks")["parameters"]][:2]
     ['scales', 'times']
+    >>> flt.describe("hks")["summary"]
+    'Heat kernel signatures at several scales (paper §2.2) -> hks (n, T).'
     """
     cls = _class(name)
     doc = cls.__doc__ or ""
@@ -165,10 +168,92 @@ def describe(name):
     for f in dataclasses.fields(cls):
         default = f.default if f.default is not dataclasses.MISSING else (
             f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
-        params.append(Parameter(f.name, _type_text(hints.get(f.name, typing.Any)), default, helps.get(f.name, "")))
-    summary = doc.strip().splitlines()[0] if doc.strip() else ""
+        params.append(Parameter(f.name, _type_text(hints.get(f.name, typing.Any)), default,
+                                plain_text(helps.get(f.name, ""))))
+    summary = plain_text(re.split(r"\n\s*\n", doc.strip(), maxsplit=1)[0]) if doc.strip() else ""
     return {"name": name, "summary": summary, "doc": doc, "parameters": params,
             "outputs": getattr(cls, "outputs", None)}
+
+
+def plain_text(text):
+    """reStructuredText of a docstring as plain one-line text: ````literal```` and ```x``` lose their
+    backticks, roles keep their text (``:func:`~a.b` `` -> ``b``, ``:class:`T <a.T>` `` -> ``T``),
+    a trailing ``::`` becomes ``:``, and lines are joined.
+
+    Examples
+    --------
+    >>> from o3dheat.filters import plain_text
+    >>> plain_text("Smooth ``f`` with\\n    :func:`~o3dheat.kernel.smooth` (see :class:`HeatKernel <o3dheat.HeatKernel>`)::")
+    'Smooth f with smooth (see HeatKernel):'
+    """
+    def role(m):
+        body = m.group(1)
+        label = re.match(r"(.*?)\s*<[^<>]*>$", body, re.S)
+        if label and label.group(1):
+            return label.group(1)
+        body = body.lstrip("!")
+        return body.rsplit(".", 1)[-1] if body.startswith("~") else body
+
+    text = re.sub(r"(?::[\w.+-]+)+:`([^`]*)`", role, text)
+    text = re.sub(r"``(.+?)``", r"\1", text, flags=re.S)
+    text = re.sub(r"`([^`]+)`_{0,2}", r"\1", text)
+    text = " ".join(text.split())
+    return text[:-1] if text.endswith("::") else text
+
+
+def one_column(values, name, column=None, option="column="):
+    """One column of a vertex attribute, by the rule every filter and command follows.
+
+    A one-column attribute, (n,) or (n, 1), is used as it is (``column`` may then be 0 or -1). An
+    attribute of several columns, (n, c) or (n, a, b...) flattened row-major like its PLY
+    properties ``name_0 .. name_{c-1}``, needs ``column`` (0-based, negative counts from the end):
+    without it, it is refused with a MeshError that lists the columns and says how to pick one.
+    There is no silent default column.
+
+    Parameters
+    ----------
+    values : array_like, (n,) or (n, ...)
+    name : str
+        The attribute's name (for messages).
+    column : int or None
+    option : str
+        How the user picks a column, for the message: ``"column="`` (a filter parameter) or
+        ``"--column "`` (a command option).
+
+    Returns
+    -------
+    numpy.ndarray, (n,)
+
+    Raises
+    ------
+    MeshError
+        Several columns and no ``column``, or a column that does not exist.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from o3dheat.filters import one_column
+    >>> one_column(np.arange(6.0).reshape(3, 2), "f", column=-1).tolist()
+    [1.0, 3.0, 5.0]
+    >>> one_column(np.arange(6.0).reshape(3, 2), "f")
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: attribute 'f' has 2 columns (0..1): pick one with column=N (0 is the first, -1 the last)
+    """
+    a = np.asarray(values)
+    a = a.reshape(len(a), -1) if a.ndim > 1 else a.reshape(len(a), 1)
+    c = a.shape[1]
+    if column is None:
+        if c == 1:
+            return a[:, 0]
+        raise MeshError(f"attribute {name!r} has {c} columns (0..{c - 1}): pick one with {option}N "
+                        "(0 is the first, -1 the last)")
+    if isinstance(column, bool) or not isinstance(column, (int, np.integer)):
+        raise MeshError(f"the column of attribute {name!r} must be an integer, got {column!r}")
+    if not -c <= column < c:
+        cols = "1 column (0)" if c == 1 else f"{c} columns (0..{c - 1})"
+        raise MeshError(f"attribute {name!r} has {cols}: column {column} does not exist")
+    return a[:, column]
 
 
 # ------------------------------------------------------------------------------- parameters
@@ -224,14 +309,17 @@ def _check(tp, value, where):
 def parse_value(text, tp):
     """A parameter value from command-line text, for the annotation ``tp``.
 
-    Lists are comma- or semicolon-free here: the command separates list items with ``;`` or
-    ``+`` (``times=0.1+0.2``); ``none`` is None; ``true``/``false`` are booleans.
+    List items are separated by ``+`` (or ``;``): ``times=0.1+0.2``; a comma cannot be used, it
+    separates the parameters of ``-f NAME:key=value,key=value``. An exponent's sign stays with
+    its number (``1e+3+2`` is 1000 and 2). ``none`` is None; ``true``/``false`` are booleans.
 
     Examples
     --------
     >>> from o3dheat.filters import parse_value
     >>> parse_value("0.5+1", tuple[float, ...]), parse_value("3", int), parse_value("none", int | None)
     ((0.5, 1.0), 3, None)
+    >>> parse_value("1e-2+1e+2", tuple[float, ...])
+    (0.01, 100.0)
     """
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     low = text.strip().lower()
@@ -248,7 +336,7 @@ def parse_value(text, tp):
         raise MeshError(f"cannot read {text!r} as {_type_text(tp)}")
     if origin in (tuple, list):
         item = args[0] if args else str
-        return tuple(parse_value(t, item) for t in re.split(r"[+;]", text) if t.strip())
+        return tuple(parse_value(t, item) for t in re.split(r";|(?<![0-9.][eE])\+", text) if t.strip())
     if origin is typing.Literal:
         return text
     if tp is bool:

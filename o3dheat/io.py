@@ -10,16 +10,22 @@ values as ``o3dheat_colors_0..2``. Any other vertex attribute ``a`` of shape (n,
 ``a``; of shape (n, c) or (n, a, b...) it is ``a_0 .. a_{c-1}`` (row-major) with a header comment
 ``o3dheat attribute a C DTYPE [shape=(a,b)]`` (C the number of columns, DTYPE the numpy dtype,
 ``shape=`` only when the trailing shape is not (C,); ``shape=()`` marks a one-column attribute
-stored as ``a``) so that :func:`read_mesh` restores the array with its shape and dtype. Types PLY
-lacks are stored exactly and restored from DTYPE: bool as uchar, int64/uint64 as int/uint when
-they fit, else as double when every |value| <= 2**53 (beyond: refused, use ``.npz``). Names PLY
+stored as ``a``) so that :func:`read_mesh` restores the array with its shape and dtype. Every
+property is ``uchar``, ``int``, ``float`` or ``double``: the types that Open3D's own PLY reader
+(``o3d.t.io.read_point_cloud`` keeps custom properties), trimesh and meshio all read (Open3D skips
+``char``, ``short``, ``ushort`` and ``uint``, meshio's binary reader fails on ``char``, ``short``
+and ``ushort``). Other dtypes are stored exactly in one of them and restored from DTYPE: bool as
+uchar; int8, int16 and uint16 as int; uint32, int64 and uint64 as int when they fit, else as
+double when every |value| <= 2**53 (beyond: refused, use ``.npz``). Names PLY
 cannot hold (spaces, non-ASCII), reserved ones (``x y z nx ny nz red green blue``, ``alpha`` but
 for one column, ``o3dheat_colors*``) and names whose properties collide (``a_0`` beside a
 multi-column ``a``) are refused with a :class:`MeshError` before anything is written, as are
 face indices beyond int32. Comments of older files (``o3dheat attribute a C DTYPE``) read as
-before. On reading, a comment is used only when its columns exist, are unused, share one type
-that holds the recorded dtype exactly and its name is not reserved; other comments are ignored
-with a warning. The header is checked against the file size before plyfile allocates anything.
+before, and so do the ``char``/``short``/``ushort``/``uint`` properties older versions wrote. On
+reading, a comment is used only when its columns exist, are unused, share one type that holds
+the recorded dtype exactly (every value in range) and its name is not reserved; other comments
+are ignored with a warning. The header is checked against the file size before plyfile
+allocates anything.
 A PLY without a face element is a point cloud.
 
 ``.npz`` layout: ``positions`` and ``indices`` (meshes), and every other attribute ``a`` as
@@ -135,11 +141,15 @@ def write_geometry(path, geometry, binary=True, overwrite=True):
 # read as the attribute "alpha", goes back).
 _PLY_RESERVED = {"x", "y", "z", "nx", "ny", "nz", "red", "green", "blue"}
 _COLORS_KEY = "o3dheat_colors"
-# dtypes a PLY property holds as they are (kind + itemsize), and the other ones o3dheat stores
-# exactly in them: bool as uchar, 64-bit integers as int/uint when they fit, else as double when
-# every |value| <= 2**53; the original dtype is recorded in the header comment.
+# dtypes a PLY property holds as they are (kind + itemsize) when reading; o3dheat writes only
+# _PLY_WRITTEN (uchar, int, float, double: what Open3D, trimesh and meshio all read) and stores
+# every other dtype exactly in one of them, recording the original dtype in the header comment.
+# _PLY_STORED: original dtype -> the stored types it may be restored from (older versions wrote
+# int8/int16/uint16/uint32 natively and uint64 as uint).
 _PLY_NATIVE = {"i1", "i2", "i4", "u1", "u2", "u4", "f4", "f8"}
-_PLY_STORED = {"b1": ("u1",), "i8": ("i4", "f8"), "u8": ("u4", "f8")}
+_PLY_WRITTEN = {"u1", "i4", "f4", "f8"}
+_PLY_STORED = {"b1": ("u1",), "i1": ("i4",), "i2": ("i4",), "u2": ("i4",), "u4": ("i4", "f8"),
+               "i8": ("i4", "f8"), "u8": ("u4", "i4", "f8")}
 _MAX_EXACT = 2 ** 53
 _NAME_RE = re.compile(r"[!-~]+\Z")  # printable ASCII, no whitespace: one PLY header token
 
@@ -153,16 +163,15 @@ def _ply_storable(name, arr, path):
     """The array a PLY stores for attribute ``name`` (same values, a PLY-native dtype), or
     MeshError when no PLY type holds it exactly."""
     code = _code(arr.dtype)
-    if code in _PLY_NATIVE:
+    if code in _PLY_WRITTEN:
         return arr
     if code == "b1":
         return arr.astype(np.uint8)
-    if code in ("i8", "u8"):
+    if arr.dtype.kind in "iu":
         lo = int(arr.min()) if arr.size else 0
         hi = int(arr.max()) if arr.size else 0
-        small = np.int32 if code == "i8" else np.uint32
-        if np.iinfo(small).min <= lo and hi <= np.iinfo(small).max:
-            return arr.astype(small)
+        if np.iinfo(np.int32).min <= lo and hi <= np.iinfo(np.int32).max:
+            return arr.astype(np.int32)
         if -_MAX_EXACT <= lo and hi <= _MAX_EXACT:
             return arr.astype(np.float64)
         raise MeshError(f"cannot write {path}: vertex attribute {name!r} ({arr.dtype}) has values beyond "
@@ -520,8 +529,11 @@ def _restore(arr, dtype):
         return None
     if code == "b1":
         return arr.astype(bool) if np.all((arr == 0) | (arr == 1)) else None
-    if stored == "f8" and not (np.all(np.isfinite(arr)) and np.all(arr == np.round(arr))
-                               and np.all(np.abs(arr) <= _MAX_EXACT) and (code == "i8" or np.all(arr >= 0))):
+    if arr.dtype.kind == "f" and not (np.all(np.isfinite(arr)) and np.all(arr == np.round(arr))
+                                      and np.all(np.abs(arr) <= _MAX_EXACT)):
+        return None
+    info = np.iinfo(dtype)
+    if arr.size and (arr.min() < info.min or arr.max() > info.max):
         return None
     return arr.astype(dtype.newbyteorder("="))
 

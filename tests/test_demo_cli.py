@@ -69,6 +69,10 @@ def test_cli_filters(capsys):
     assert main(["filters"]) == 0
     out = capsys.readouterr().out
     assert "heat_smooth" in out and "colorize" in out
+    lines = out.strip().splitlines()
+    assert len(lines) == 6  # one line per built-in filter
+    for line in lines:  # plain text, whole sentences
+        assert "``" not in line and "`" not in line and ":func:" not in line and line.endswith("."), line
     assert main(["filters", "hks"]) == 0
     out = capsys.readouterr().out
     assert "form" in out and "default 'density'" in out
@@ -79,7 +83,7 @@ def test_cli_filters(capsys):
 def test_cli_apply_chain_round_trip(tmp_path, sphere_ply, capsys):
     out, chain = tmp_path / "out.ply", tmp_path / "chain.toml"
     rc = main(["apply", str(sphere_ply), str(out), "-f", "scalar:kind=height",
-               "-f", "heat_smooth:attribute=height,k=20,times=0.01+0.02", "-f", "colorize:attribute=height_smooth",
+               "-f", "heat_smooth:attribute=height,k=20,times=0.01+0.02", "-f", "colorize:attribute=height_smooth,column=1",
                "--save-chain", str(chain)])
     assert rc == 0, capsys.readouterr().err
     assert "height_smooth (" in capsys.readouterr().out
@@ -98,6 +102,10 @@ def test_cli_apply_chain_round_trip(tmp_path, sphere_ply, capsys):
     (["-f", "hks:k"], "key=value"),
     (["-f", "heat_smooth:attribute=missing,k=10"], "no vertex attribute 'missing'"),
     ([], "no filter given"),
+    (["-f", "heat_smooth:attribute=height,times=0.01,0.05"], "write lists with +: times=0.01+0.05"),
+    (["-f", "heat_smooth:times=0.01,0.05,0.1,k=20"], "'0.05' is not key=value: write lists with +: times=0.01+0.05+0.1"),
+    (["-f", "scalar", "-f", "heat_smooth:attribute=height,k=10,times=0.01+0.02",
+      "-f", "colorize:attribute=height_smooth"], "attribute 'height_smooth' has 2 columns (0..1): pick one with column=N"),
     (["--chain", "/no/chain.toml"], "cannot read chain"),
 ])
 def test_cli_apply_user_errors(tmp_path, sphere_ply, capsys, args, message):
@@ -157,6 +165,71 @@ def test_cli_save_chain_never_replaces_a_file_by_accident(tmp_path, sphere_ply, 
     assert saved.read_text() == "keep me" and not out.exists()
     assert main(["apply", str(sphere_ply), str(out), "-f", "scalar", "--save-chain", str(saved), "--overwrite"]) == 0
     assert "scalar" in saved.read_text()
+
+
+def test_cli_version(capsys):
+    import o3dheat
+
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0 and capsys.readouterr().out.strip() == f"o3dheat {o3dheat.__version__}"
+
+
+def test_missing_output_folders_are_refused_before_any_work(tmp_path, sphere_ply, capsys, monkeypatch):
+    """Every subcommand that writes a file refuses a folder that does not exist, and every one
+    that writes into a folder refuses one it cannot create, before computing (exit status 2)."""
+    import o3dheat.demo as demo
+    import o3dheat.plot as plot
+    import o3dheat.spectrum as spectrum
+
+    monkeypatch.setattr(demo, "run", lambda **kw: pytest.fail("the demo ran"))
+    monkeypatch.setattr(plot, "paper_figures", lambda *a, **kw: pytest.fail("the figures were drawn"))
+    monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **kw: pytest.fail("eigensolve called"))
+    missing = tmp_path / "nonexistent_dir"
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    cases = [
+        (["apply", str(sphere_ply), str(missing / "out.ply"), "-f", "hks:k=10"], "the folder"),
+        (["repair", str(sphere_ply), str(missing / "out.ply")], "the folder"),
+        (["spectrum", str(sphere_ply), "-o", str(missing / "s.npz")], "the folder"),
+        (["demo", "--out", str(missing / "bunny.ply")], "the folder"),
+        (["figure", str(sphere_ply), "-o", str(a_file / "figs")], "cannot create the folder"),
+        (["study", str(tmp_path / "study.toml"), "--out", str(a_file / "r")], "cannot create the folder"),
+        (["batch", str(sphere_ply), "--out", str(a_file), "-f", "scalar", "--scheduler", "sequential"], ""),
+    ]
+    for args, message in cases:
+        assert main(args) == 2, args
+        err = capsys.readouterr().err
+        assert err.startswith("o3dheat: error:") and message in err and "Traceback" not in err, (args, err)
+        assert not missing.exists()
+    assert "does not exist: create it first" in (main(["spectrum", str(sphere_ply), "-o", str(missing / "s.npz")]),
+                                                 capsys.readouterr().err)[1]
+
+
+def test_cli_figure_column(tmp_path, sphere_ply, capsys, monkeypatch):
+    import o3dheat.plot as plot
+    from o3dheat.io import write_mesh
+
+    m = read_mesh(sphere_ply)
+    n = len(m.vertex.positions)
+    H = np.arange(3 * n, dtype=np.float64).reshape(n, 3)
+    m.vertex["hks"] = o3d.core.Tensor(H)
+    m.vertex["f"] = o3d.core.Tensor(H[:, :1].copy())  # (n, 1): no column needed
+    p = tmp_path / "m.ply"
+    write_mesh(p, m)
+    seen = []
+    monkeypatch.setattr(plot, "paper_figures", lambda mesh, out, field=None, **kw: seen.append(field) or Path(out) / "index.md")
+    figs = str(tmp_path / "figs")
+    assert main(["figure", str(p), "-o", figs, "--attribute", "hks"]) == 2
+    assert ("attribute 'hks' has 3 columns (0..2): pick one with --column N (0 is the first, -1 the last)"
+            in capsys.readouterr().err) and not seen
+    assert main(["figure", str(p), "-o", figs, "--attribute", "hks", "--column", "3"]) == 2
+    assert "column 3 does not exist" in capsys.readouterr().err
+    assert main(["figure", str(p), "-o", figs, "--column", "1"]) == 2
+    assert "give --attribute too" in capsys.readouterr().err
+    assert main(["figure", str(p), "-o", figs, "--attribute", "hks", "--column", "-1"]) == 0
+    assert main(["figure", str(p), "-o", figs, "--attribute", "f", "--overwrite"]) == 0
+    assert np.array_equal(seen[0], H[:, 2]) and np.array_equal(seen[1], H[:, 0]) and seen[0].ndim == 1
 
 
 def test_cli_spectrum_and_figure(tmp_path, sphere_ply, capsys):

@@ -1,5 +1,6 @@
 """Filters: registry, built-in filters, chains, plugins, point clouds (issue 5)."""
 
+import re
 import subprocess
 import sys
 import textwrap
@@ -156,6 +157,75 @@ def test_colorize(sphere):
         flt.get("colorize", range=[1.0, 0.0])
 
 
+# ------------------------------------------------ one rule for multi-column attributes (issue 15)
+def test_every_filter_follows_the_column_rule(sphere):
+    """A filter that reads one column of an (n, c) attribute needs column= (0-based, negative from
+    the end); without it, it refuses listing the columns; a one-column attribute needs none."""
+    V = sphere.vertex.positions.numpy()
+    n = len(V)
+    G = np.stack([V[:, 2], V[:, 0] + 0.1 * V[:, 1], V[:, 1]], 1)
+    m = sphere.clone()
+    m.vertex["g"] = o3d.core.Tensor(G)
+    m.vertex["g1"] = o3d.core.Tensor(np.ascontiguousarray(G[:, 1]))  # the same column, alone
+    m.vertex["g_one"] = o3d.core.Tensor(np.ascontiguousarray(G[:, 1:2]))  # (n, 1)
+    m.vertex["cube"] = o3d.core.Tensor(G[:, :2].reshape(n, 1, 2).copy())  # (n, 1, 2): columns row-major
+    cases = [("colorize", {}, "colors"), ("critical_points", {}, "{a}_critical"),
+             ("feature_approx", {"k": 20, "keep_fraction": 0.5}, "{a}_loc"),
+             ("heat_smooth", {"k": 20, "times": [0.01, 0.02]}, "{a}_smooth")]
+    for name, params, output in cases:
+        with pytest.raises(o3dheat.MeshError, match=r"attribute 'g' has 3 columns \(0\.\.2\): pick one with "
+                                                    r"column=N \(0 is the first, -1 the last\)"):
+            flt.apply(m, name, attribute="g", **params)
+        with pytest.raises(o3dheat.MeshError, match=r"attribute 'g' has 3 columns \(0\.\.2\): column 3 does not exist"):
+            flt.apply(m, name, attribute="g", column=3, **params)
+        ref = flt.apply(m, name, attribute="g1", **params).vertex[output.format(a="g1")].numpy()
+        for attribute, column in [("g", 1), ("g", -2), ("g_one", None), ("g_one", 0), ("g1", -1), ("cube", 1)]:  # cube: (n, 1, 2), column 1 is G[:, 1]
+            got = flt.apply(m, name, attribute=attribute, column=column, **params)
+            assert np.array_equal(got.vertex[output.format(a=attribute)].numpy(), ref), (name, attribute, column)
+    # heat_smooth at one time smooths every column (no column needed); several times need one
+    one = flt.apply(m, "heat_smooth", attribute="g", k=20, times=[0.01]).vertex["g_smooth"].numpy()
+    assert one.shape == (n, 3)
+    col = flt.apply(m, "heat_smooth", attribute="g", column=1, k=20, times=[0.01]).vertex["g_smooth"].numpy()
+    assert np.allclose(one[:, 1], col)
+    with pytest.raises(o3dheat.MeshError, match="give one time"):
+        flt.apply(m, "heat_smooth", attribute="g", k=20)
+    # scalar noise perturbs every column (it reads no single column)
+    noisy = flt.apply(m, "scalar", kind="noise", attribute="g").vertex["g_noisy"].numpy()
+    assert noisy.shape == (n, 3)
+    with pytest.raises(o3dheat.MeshError, match="must be an integer"):
+        flt.apply(m, "colorize", attribute="g", column=1.5)
+
+
+def test_one_column_is_checked_before_the_eigensolve(sphere, monkeypatch):
+    import o3dheat.spectrum as spectrum
+
+    o3dheat.spectrum.clear_cache()
+    monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("eigensolve called"))
+    m = flt.apply(sphere, "scalar", kind="noise", attribute="positions")
+    for name, params in [("heat_smooth", {"k": 20}), ("critical_points", {}), ("feature_approx", {"k": 20})]:
+        with pytest.raises(o3dheat.MeshError, match="pick one with column=N"):
+            flt.apply(m, name, attribute="positions_noisy", **params)
+
+
+def test_summaries_and_help_are_plain_text():
+    for name in flt.names():
+        d = flt.describe(name)
+        texts = [d["summary"]] + [p.help for p in d["parameters"]]
+        for text in texts:
+            assert "``" not in text and not re.search(r":\w+:`", text) and "`" not in text, (name, text)
+            assert "\n" not in text
+        assert d["summary"].endswith("."), (name, d["summary"])  # a whole paragraph, not its first line
+    assert flt.describe("critical_points")["summary"].endswith("3 maximum.")
+    assert flt.plain_text(":func:`o3dheat.kernel.smooth` and :meth:`~o3dheat.HeatKernel.hks`::") == \
+        "o3dheat.kernel.smooth and hks:"
+
+
+def test_parse_value_lists():
+    assert flt.parse_value("0.01+0.05", tuple[float, ...]) == (0.01, 0.05)
+    assert flt.parse_value("1e+3+2;1E+1", tuple[float, ...]) == (1000.0, 2.0, 10.0)
+    assert flt.parse_value("none", tuple[float, ...] | None) is None
+
+
 def test_a_chain_solves_the_eigenproblem_once(sphere, monkeypatch):
     import o3dheat.spectrum as spectrum
 
@@ -164,7 +234,7 @@ def test_a_chain_solves_the_eigenproblem_once(sphere, monkeypatch):
     real = spectrum.eigensolve
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: calls.append(1) or real(*a, **k))
     chain = flt.Chain([("heat_smooth", {"k": 25}), ("hks", {"k": 25}), ("feature_approx", {"k": 25}),
-                       ("colorize", {"attribute": "height_smooth"})])
+                       ("colorize", {"attribute": "height_smooth", "column": 4})])
     out = chain(sphere)
     assert len(calls) == 1
     assert {"height_smooth", "hks", "height_glob", "height_loc", "colors"} <= {k for k in out.vertex}
@@ -173,7 +243,7 @@ def test_a_chain_solves_the_eigenproblem_once(sphere, monkeypatch):
 def test_chain_toml_round_trip(sphere, tmp_path):
     chain = flt.Chain().append("scalar", kind="noise", attribute="height", sigma=0.1)
     chain.append(flt.get("heat_smooth", attribute="height_noisy", times=[0.01, 0.02], k=20))
-    chain.append(("colorize", {"attribute": "height_noisy_smooth", "range": [-1.0, 1.0]}))
+    chain.append(("colorize", {"attribute": "height_noisy_smooth", "column": -1, "range": [-1.0, 1.0]}))
     path = tmp_path / "chain.toml"
     chain.save(path)
     again = flt.Chain.load(path)
@@ -285,7 +355,7 @@ def test_filters_on_point_clouds(operators):
         out = flt.Chain([("scalar", {"kind": "height", "operators": operators}),
                          ("heat_smooth", {"k": 20, "operators": operators, "times": [0.05]}),
                          ("hks", {"k": 20, "operators": operators, "scales": 3}),
-                         ("colorize", {"attribute": "hks"})])(pc)
+                         ("colorize", {"attribute": "hks", "column": 0})])(pc)
         assert isinstance(out, o3d.t.geometry.PointCloud)
         s = out.point["height_smooth"].numpy()
         # Φ_t of the height on the unit sphere: exp(-2 t / 2) z (an l = 1 harmonic)

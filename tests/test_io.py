@@ -412,6 +412,12 @@ _SPOOFS = [  # (comment, extra properties, {attribute: shape} expected beside po
     ("o3dheat attribute a 2 |b1", {"a_0": np.full(4, 2, np.uint8), "a_1": np.ones(4, np.uint8)},
      {"a_0": (4,), "a_1": (4,)}),
     ("o3dheat attribute a 2 <f8", {"a_0": np.ones(4), "a_1": np.ones(4, "f4")}, {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a 2 |i1", {"a_0": np.full(4, 300, "i4"), "a_1": np.ones(4, "i4")},  # 300 is no int8
+     {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a 2 <u8", {"a_0": np.full(4, -1, "i4"), "a_1": np.ones(4, "i4")},  # -1 is no uint64
+     {"a_0": (4,), "a_1": (4,)}),
+    ("o3dheat attribute a 2 <u2", {"a_0": np.ones(4, "f8"), "a_1": np.ones(4, "f8")},  # uint16 is never double
+     {"a_0": (4,), "a_1": (4,)}),
     ("o3dheat attribute a_0 1 <f8 shape=()", {"a_0": np.ones(4)}, {"a_0": (4,)}),  # harmless, as written
     ("o3dheat attribute y 1 <f8 shape=()", {}, {}),
 ]
@@ -432,6 +438,116 @@ def test_crafted_comments_are_ignored(tmp_path, caplog, case, binary):
     assert got == expected
     if case != len(_SPOOFS) - 2:
         assert "ignoring" in caplog.text
+
+
+# ------------------------------------------------ files for other tools (issue 15)
+def _foreign_mesh():
+    """A mesh with an attribute of every kind o3dheat writes, including the ones PLY lacks."""
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)
+    n = len(m.vertex.positions)
+    r = np.random.default_rng(4)
+    m.vertex.normals = m.vertex.positions / 1.0
+    m.vertex.colors = o3d.core.Tensor(r.random((n, 3)).astype(np.float32))
+    m.vertex["f"] = o3d.core.Tensor(r.standard_normal(n))
+    m.vertex["hks"] = o3d.core.Tensor(r.random((n, 3)))
+    m.vertex["crit"] = o3d.core.Tensor(r.integers(0, 4, n).astype(np.int8))  # what critical_points writes
+    m.vertex["i16"] = o3d.core.Tensor(r.integers(-30000, 30000, n).astype(np.int16))
+    m.vertex["u16"] = o3d.core.Tensor(r.integers(0, 65535, n).astype(np.uint16))
+    m.vertex["u32"] = o3d.core.Tensor(np.arange(n, dtype=np.uint32) + np.uint32(2 ** 32 - 200))  # beyond int32
+    m.vertex["big"] = o3d.core.Tensor(np.arange(n, dtype=np.int64) + 2 ** 40)
+    m.vertex["flag"] = o3d.core.Tensor(np.arange(n) % 3 == 0)
+    return m
+
+
+def _expected_columns(m):
+    """{PLY property: values} of the custom attributes, as other readers should see them."""
+    out = {}
+    for key in m.vertex:
+        if key in ("positions", "normals", "colors"):
+            continue
+        a = m.vertex[key].numpy()
+        if a.ndim == 1:
+            out[key] = a.astype(np.float64)
+        else:
+            out.update({f"{key}_{j}": a[:, j].astype(np.float64) for j in range(a.shape[1])})
+    return out
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_written_ply_uses_only_types_every_reader_reads(tmp_path, binary):
+    from plyfile import PlyData
+    m = _foreign_mesh()
+    p = tmp_path / "m.ply"
+    write_mesh(p, m, binary=binary)
+    types = {prop.name: str(prop).split()[1] for prop in PlyData.read(str(p))["vertex"].properties}
+    assert set(types.values()) <= {"uchar", "int", "float", "double"}, types
+    assert types["crit"] == types["i16"] == types["u16"] == "int" and types["flag"] == "uchar"
+    assert types["u32"] == types["big"] == "double" and types["red"] == "uchar"
+    _assert_exact(m.vertex, read_mesh(p).vertex)  # o3dheat's own reader: still exact
+
+
+def test_open3d_reads_our_ply(tmp_path):
+    m = _foreign_mesh()
+    p = tmp_path / "m.ply"
+    write_mesh(p, m)
+    V, F = m.vertex.positions.numpy(), m.triangle.indices.numpy()
+    legacy = o3d.io.read_triangle_mesh(str(p))
+    np.testing.assert_array_equal(np.asarray(legacy.vertices), V)
+    np.testing.assert_array_equal(np.asarray(legacy.triangles), F)
+    assert legacy.has_vertex_normals() and legacy.has_vertex_colors()
+    t = o3d.t.io.read_triangle_mesh(str(p))
+    np.testing.assert_array_equal(t.vertex.positions.numpy(), V)
+    np.testing.assert_array_equal(t.triangle.indices.numpy(), F)
+    pc = o3d.t.io.read_point_cloud(str(p))  # Open3D's reader that keeps custom properties: all of them
+    np.testing.assert_array_equal(pc.point.positions.numpy(), V)
+    for key, values in _expected_columns(m).items():
+        assert key in pc.point, key
+        np.testing.assert_array_equal(pc.point[key].numpy().ravel().astype(np.float64), values, err_msg=key)
+
+
+def test_trimesh_reads_our_ply(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    m = _foreign_mesh()
+    p = tmp_path / "m.ply"
+    write_mesh(p, m)
+    t = trimesh.load(str(p), process=False)
+    np.testing.assert_array_equal(t.vertices, m.vertex.positions.numpy())
+    np.testing.assert_array_equal(t.faces, m.triangle.indices.numpy())
+    data = t.metadata["_ply_raw"]["vertex"]["data"]
+    for key, values in _expected_columns(m).items():
+        np.testing.assert_array_equal(data[key].ravel().astype(np.float64), values, err_msg=key)
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_meshio_reads_our_ply(tmp_path, binary):
+    meshio = pytest.importorskip("meshio")
+    m = _foreign_mesh()
+    p = tmp_path / "m.ply"
+    write_mesh(p, m, binary=binary)
+    r = meshio.read(str(p))
+    np.testing.assert_array_equal(r.points, m.vertex.positions.numpy())
+    np.testing.assert_array_equal(r.cells_dict["triangle"], m.triangle.indices.numpy())
+    for key, values in _expected_columns(m).items():
+        got = r.point_data[key].ravel()
+        if key == "flag" and binary:  # meshio 5.3 reads binary uchar as signed: fine for 0/1
+            got = got.astype(np.uint8)
+        np.testing.assert_array_equal(got.astype(np.float64), values, err_msg=key)
+
+
+def test_files_of_older_versions_with_char_short_ushort_uint_still_read_exactly(tmp_path):
+    from o3dheat.io import read_geometry
+    props = {"c": np.array([-128, 0, 1, 127], "i1"), "s": np.array([-3, 0, 1, 2], "i2"),
+             "us": np.array([0, 1, 2, 65535], "u2"), "u": np.array([0, 1, 2, 2 ** 32 - 1], "u4"),
+             "w_0": np.array([-1, 0, 1, 2], "i1"), "w_1": np.array([5, 6, 7, 8], "i1"),
+             "q_0": np.array([0, 1, 2, 3], "u4"), "q_1": np.array([4, 5, 6, 7], "u4")}
+    p = tmp_path / "old.ply"
+    _ply(p, props, ["o3dheat attribute w 2 |i1", "o3dheat attribute q 2 <u8"])
+    g = read_geometry(p)
+    for key in ("c", "s", "us", "u"):
+        assert g.point[key].numpy().dtype == props[key].dtype
+        np.testing.assert_array_equal(g.point[key].numpy(), props[key])
+    assert g.point["w"].numpy().dtype == np.int8 and g.point["w"].numpy().tolist()[0] == [-1, 5]
+    assert g.point["q"].numpy().dtype == np.uint64 and g.point["q"].numpy().tolist()[3] == [3, 7]
 
 
 def test_plain_property_named_positions_is_ignored(tmp_path, caplog):
