@@ -13,6 +13,7 @@ arbitrary but deterministic (the start vectors are seeded).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import logging
 import os
@@ -382,7 +383,11 @@ def _unpermuted(X, perm, chunk=32):
 
 def _solve_dense(L, B, k):
     t0 = time.perf_counter()
-    lam, X = sla.eigh(L.toarray(), B.toarray(), subset_by_index=[0, k - 1])
+    # up to DENSE_MAX_N the BLAS gains nothing from threads (measured), and when another process
+    # keeps a core busy OpenBLAS' spinning threads made a 1152-vertex solve 90x slower: one thread
+    small = L.shape[0] <= DENSE_MAX_N
+    with parallel.blas_one_thread() if small else contextlib.nullcontext():
+        lam, X = sla.eigh(L.toarray(), B.toarray(), subset_by_index=[0, k - 1])
     return lam, X, "dense", 0.0, time.perf_counter() - t0
 
 
