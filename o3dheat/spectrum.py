@@ -42,6 +42,7 @@ __all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "peak_memory", "def
 log = logging.getLogger("o3dheat")
 
 MASS_KINDS = ("consistent", "lumped", "voronoi", "identity")
+METHODS = ("auto", "lanczos", "arpack", "dense")  # eigensolve(method=): defined here only
 DENSE_MAX_N = 1200
 DENSE_LIMIT_N = 12_000  # above this a dense solve needs several GiB: never chosen automatically
 # Measured (scripts/bench_spectrum.py, 2 cores): the block Lanczos wins from about 10k vertices,
@@ -453,8 +454,8 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     """
     if mass not in MASS_KINDS:
         raise MeshError(f"unknown mass {mass!r}: use one of {MASS_KINDS}")
-    if method not in ("auto", "lanczos", "arpack", "dense"):
-        raise MeshError(f"unknown method {method!r}: use 'auto', 'lanczos', 'arpack' or 'dense'")
+    if method not in METHODS:
+        raise MeshError(f"unknown method {method!r}: use one of {METHODS}")
     k = _check_k(k)
     t0 = time.perf_counter()
     prep = prepare(mesh)
@@ -632,8 +633,8 @@ def eigensolve_operators(L, B, k=100, sigma=None, backend="auto", method="auto",
     >>> eigensolve_operators(L, sp.identity(10), k=2).eigenvalues.round(4).tolist()
     [0.0, 0.0979]
     """
-    if method not in ("auto", "lanczos", "arpack", "dense"):
-        raise MeshError(f"unknown method {method!r}: use 'auto', 'lanczos', 'arpack' or 'dense'")
+    if method not in METHODS:
+        raise MeshError(f"unknown method {method!r}: use one of {METHODS}")
     L, B = sp.csc_matrix(L, dtype=np.float64), sp.csc_matrix(B, dtype=np.float64)
     n = L.shape[0]
     if L.shape != (n, n) or B.shape != (n, n):
