@@ -252,6 +252,20 @@ def _kernel(name):
     return k
 
 
+def compiled_in_this_process():
+    """Whether this process compiled any of the topology's loops (a first call of an installation,
+    or after a change of the source: a few seconds once) rather than loading them from the cache.
+
+    Examples
+    --------
+    >>> import o3dheat.topology as T
+    >>> isinstance(T.compiled_in_this_process(), bool)
+    True
+    """
+    return any(sum(k.stats.cache_misses.values()) > 0 for k in _compiled.values()
+               if hasattr(k, "stats"))
+
+
 def _k_edges(F, n):
     """Unique edges of the faces in ``(lo, hi)`` order, by a counting sort of the half-edges on
     their lower vertex (then by the higher one inside each bucket, small: a vertex's edges).

@@ -745,3 +745,36 @@ def test_compiled_loops_are_cached():
         k = _kernel(name)
         assert k.signatures, name
         assert Path(k._cache._cache_file._index_path).is_file(), name
+
+
+def test_compiled_in_this_process_says_whether_the_loops_were_compiled_or_loaded(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    code = ("import open3d as o3d, o3dheat, o3dheat.topology as T;"
+            "m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8);"
+            "o3dheat.critical_points(m, m.vertex.positions.numpy()[:, 2]);"
+            "print(T.compiled_in_this_process())")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    # a cache folder of its own: numba uses it only when the module's own folder is not writable,
+    # so compare a first run with a second one (the second loads what the first wrote or found)
+    first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    second = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert first.returncode == 0 and second.returncode == 0, first.stderr[-500:] + second.stderr[-500:]
+    assert first.stdout.strip() in ("True", "False")
+    assert second.stdout.strip() == "False"  # cached by then
+
+
+def test_compiled_in_this_process_counts_cache_misses(monkeypatch):
+    import types
+
+    import o3dheat.topology as T
+
+    def fake(misses):
+        return types.SimpleNamespace(stats=types.SimpleNamespace(cache_misses={("sig",): misses}))
+
+    monkeypatch.setattr(T, "_compiled", {"a": fake(0), "b": fake(0)})
+    assert T.compiled_in_this_process() is False
+    monkeypatch.setattr(T, "_compiled", {"a": fake(0), "b": fake(1)})
+    assert T.compiled_in_this_process() is True
