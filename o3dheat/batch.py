@@ -173,6 +173,8 @@ def _one(chain, src, dst, binary, single_threaded):
     from .parallel import threads
 
     t0 = time.perf_counter()
+    named = _Named(src)
+    log.addFilter(named)  # the warnings of a file's work say which file they are about
     try:
         with threadpool_limits(1):  # BLAS results depend on its thread count; o3dheat's do not
             if single_threaded:
@@ -188,7 +190,21 @@ def _one(chain, src, dst, binary, single_threaded):
     finally:  # the file's spectra serve no other file: free them before the next one's
         from .spectrum import clear_cache
 
+        log.removeFilter(named)
         clear_cache()
+
+
+class _Named(logging.Filter):
+    """Prefixes o3dheat's log messages with a file's name (unless they already name it)."""
+
+    def __init__(self, path):
+        super().__init__()
+        self.path, self.name_ = str(path), Path(path).name
+
+    def filter(self, record):
+        if self.name_ not in record.getMessage():
+            record.msg, record.args = f"{self.path}: {record.getMessage()}", None
+        return True
 
 
 def _message(e):

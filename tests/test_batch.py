@@ -243,3 +243,24 @@ def test_cli_batch_on_its_own_local_cluster(scans, tmp_path, capsys, monkeypatch
 def test_progress_bar_on_request(scans, tmp_path, capsys):
     run(STEPS[:1], scans / "*.ply", tmp_path / "o", scheduler="sequential", progress=True)
     assert "3/3" in capsys.readouterr().err
+
+
+def test_warnings_of_a_file_name_the_file(tmp_path, caplog):
+    from o3dheat.io import write_mesh
+
+    V, F = torus()
+    V = np.concatenate([V, [[9.0, 9.0, 9.0]]])  # an unreferenced vertex: a warning while solving
+    m = o3d.t.geometry.TriangleMesh()
+    m.vertex.positions = o3d.core.Tensor(V)
+    m.triangle.indices = o3d.core.Tensor(F)
+    src = tmp_path / "lonely.ply"
+    write_mesh(src, m)
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        t = run([("scalar", {"kind": "height"}), ("heat_smooth", {"attribute": "height", "k": 10})], src,
+                tmp_path / "out", scheduler="sequential", progress=False)
+    assert t["status"].tolist() == ["done"]
+    msgs = [r.getMessage() for r in caplog.records if "unreferenced" in r.getMessage()]
+    assert msgs and all("lonely.ply: " in msg for msg in msgs)
+    import logging
+
+    assert not logging.getLogger("o3dheat").filters  # removed after the file
