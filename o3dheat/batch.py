@@ -48,7 +48,7 @@ from pathlib import Path
 
 from .errors import MeshError, SolverError
 
-__all__ = ["run", "expand", "outputs", "summary", "COLUMNS", "STATUSES", "MANIFEST"]
+__all__ = ["run", "expand", "outputs", "summary", "named_error", "COLUMNS", "STATUSES", "MANIFEST"]
 
 log = logging.getLogger("o3dheat")
 
@@ -165,7 +165,7 @@ def _same_file(a, b):
 
 
 # ------------------------------------------------------------------------------- one file
-def _one(chain, src, dst, binary, single_threaded):
+def _one(chain, src, dst, binary, single_threaded, name=None):
     """(status, seconds, error) of one file: read, run the chain, write atomically."""
     from threadpoolctl import threadpool_limits
 
@@ -173,7 +173,7 @@ def _one(chain, src, dst, binary, single_threaded):
     from .parallel import threads
 
     t0 = time.perf_counter()
-    named = _Named(src)
+    named = _Named(src if name is None else name)  # as the user gave it
     log.addFilter(named)  # the warnings of a file's work say which file they are about
     try:
         with threadpool_limits(1):  # BLAS results depend on its thread count; o3dheat's do not
@@ -340,7 +340,7 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
         error = error.replace(src[i], str(inputs[i])).replace(dst[i], str(dsts[i]))  # the paths as given
         rows[i][2:] = [status, float(seconds), error]
         if status == "failed":
-            log.warning("%s failed: %s", inputs[i], error)
+            log.warning("%s (failed: nothing written for it)", named_error(inputs[i], error))
             if overwrite and dsts[i].exists():  # an earlier result, not this run's
                 try:
                     dsts[i].unlink()
@@ -353,13 +353,13 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
         with session(scheduler if todo else "sequential") as client:
             if client is None:
                 for i in todo:
-                    done(i, _one(chain, src[i], dst[i], binary, False))
+                    done(i, _one(chain, src[i], dst[i], binary, False, str(inputs[i])))
             else:
                 from distributed import as_completed
 
                 sizes = {i: _size(src[i]) for i in todo}
                 order = sorted(todo, key=lambda i: -sizes[i])  # the largest files first
-                futures = {client.submit(_one, chain, src[i], dst[i], binary, True, pure=False,
+                futures = {client.submit(_one, chain, src[i], dst[i], binary, True, str(inputs[i]), pure=False,
                                          priority=len(order) - r, key=f"o3dheat-batch-{i}-{os.urandom(4).hex()}"): i
                            for r, i in enumerate(order)}
                 for fut in as_completed(list(futures)):
@@ -380,6 +380,19 @@ def _size(path):
         return os.path.getsize(path)
     except OSError:
         return 0
+
+
+def named_error(path, error):
+    """``"path: error"``, unless the error already starts with the path.
+
+    Examples
+    --------
+    >>> from o3dheat.batch import named_error
+    >>> named_error("a.ply", "no faces"), named_error("a.ply", "a.ply: not a readable PLY file")
+    ('a.ply: no faces', 'a.ply: not a readable PLY file')
+    """
+    path = str(path)
+    return error if error.startswith(path) else f"{path}: {error}"
 
 
 def summary(table):

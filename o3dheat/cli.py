@@ -292,7 +292,7 @@ def _chain(args):
 
 
 def _batch(args):
-    from .batch import run, summary
+    from .batch import named_error, run, summary
 
     chain = _chain(args)
     try:
@@ -307,8 +307,7 @@ def _batch(args):
     if len(failed):
         print(f"{len(failed)} file(s) failed (retried when the same command runs again):", file=sys.stderr)
         for _, r in failed.iterrows():
-            error = r["error"] if r["error"].startswith(r["input"]) else f"{r['input']}: {r['error']}"
-            print(f"  {error}", file=sys.stderr)
+            print(f"  {named_error(r['input'], r['error'])}", file=sys.stderr)
         return 1
     return 0
 
