@@ -239,7 +239,9 @@ def _recorded(out_dir, chain):
 
 
 def _preflight(chain, paths, out_dir, overwrite, suffix):
-    """(chain, inputs, outputs) after every check, before any work; writes the folder's record."""
+    """(chain, inputs, outputs, record) after every check, before any work; writes nothing.
+    ``record`` writes the folder and its chain record (called once the scheduler is reached, so
+    that a bad scheduler address leaves no folder behind)."""
     from .filters import Chain
 
     if not isinstance(chain, Chain):
@@ -263,16 +265,22 @@ def _preflight(chain, paths, out_dir, overwrite, suffix):
         names = ", ".join(d.name for d in existing[:3]) + (" ..." if len(existing) > 3 else "")
         raise MeshError(f"{out_dir} already has {names}, not written by a batch ({MANIFEST} is missing): "
                         "use another folder, or --overwrite (overwrite=True) to replace them")
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise MeshError(f"cannot create the output folder {out_dir}: {e.strerror}") from None
-    if not same:
+    parent = next((p for p in out_dir.absolute().parents if p.exists()), None)
+    if not out_dir.exists() and parent is not None and not (parent.is_dir() and os.access(parent, os.W_OK | os.X_OK)):
+        raise MeshError(f"cannot create the output folder {out_dir}: {parent} is not a writable folder")
+
+    def record():
         try:
-            chain.save(out_dir / MANIFEST)
-        except MeshError as e:
-            raise MeshError(f"cannot record the chain in {out_dir / MANIFEST}: {e}") from None
-    return chain, inputs, dsts
+            out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise MeshError(f"cannot create the output folder {out_dir}: {e.strerror}") from None
+        if not same:
+            try:
+                chain.save(out_dir / MANIFEST)
+            except MeshError as e:
+                raise MeshError(f"cannot record the chain in {out_dir / MANIFEST}: {e}") from None
+
+    return chain, inputs, dsts, record
 
 
 # ------------------------------------------------------------------------------- the batch
@@ -328,7 +336,7 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
 
     from .cluster import progress_bar, session
 
-    chain, inputs, dsts = _preflight(chain, paths, out_dir, overwrite, suffix)
+    chain, inputs, dsts, record = _preflight(chain, paths, out_dir, overwrite, suffix)
     rows = [[str(s), str(d), "skipped", 0.0, ""] for s, d in zip(inputs, dsts)]
     todo = [i for i, d in enumerate(dsts) if overwrite or not d.exists()]
     src = [os.path.abspath(p) for p in inputs]  # workers may run elsewhere, in another folder
@@ -351,6 +359,7 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
 
     try:
         with session(scheduler if todo else "sequential") as client:
+            record()  # the scheduler is reached: now the folder
             if client is None:
                 for i in todo:
                     done(i, _one(chain, src[i], dst[i], binary, False, str(inputs[i])))

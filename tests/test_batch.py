@@ -142,6 +142,21 @@ def test_names_are_checked_before_any_work(scans, tmp_path):
     assert (scans / "m0.ply").read_bytes() == before["m0.ply"]
 
 
+def test_an_unreachable_scheduler_leaves_no_folder(scans, tmp_path):
+    import dask
+    import distributed  # noqa: F401  (its config defaults first: set() must not shadow them)
+
+    out = tmp_path / "out"
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        with pytest.raises(o3dheat.MeshError, match="cannot connect to the Dask scheduler"):
+            run(STEPS, scans / "*.ply", out, scheduler="tcp://127.0.0.1:9")
+    assert not out.exists()  # nothing written, not even the chain record
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(o3dheat.MeshError, match="not a writable folder"):
+        run(STEPS, scans / "*.ply", blocker / "out", scheduler="sequential")
+
+
 def test_another_chain_or_foreign_files_are_refused(scans, tmp_path):
     out = tmp_path / "out"
     run(STEPS, scans / "*.ply", out, scheduler="sequential", progress=False)
