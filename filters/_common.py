@@ -10,22 +10,43 @@ no critical points), when that package is installed (``pip install robust-laplac
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 
+from o3dheat import kernel
 from o3dheat.errors import MeshError
-from o3dheat.kernel import GRIDS, HKS_FORMS, VARIANTS
+from o3dheat.filters import OneOf
 
+#: how point clouds get operators (``operators=`` of the filters)
 OPERATORS = ("reconstruct", "robust")
-#: parameter types shared by the filters, from the kernel module's single definitions
-Variant = Literal[tuple(VARIANTS)]
-Grid = Literal[GRIDS]
-HksForm = Literal[HKS_FORMS]
+#: parameter types shared by the filters, from the kernel module's single definitions; the variants
+#: are read when a value is checked, so that a variant added to o3dheat.kernel.VARIANTS (even at
+#: run time) is accepted by every filter at once
+Variant = Annotated[str, OneOf(lambda: kernel.VARIANTS)]
+Grid = Literal[kernel.GRIDS]
+HksForm = Literal[kernel.HKS_FORMS]
+Normalization = Literal[kernel.NORMALIZATIONS]
+Operators = Literal[OPERATORS]
 
 
 class Site:
-    """A copy of the input geometry that a filter reads and writes."""
+    """A copy of the input geometry that a filter reads and writes.
+
+    Parameters
+    ----------
+    geometry : Open3D TriangleMesh or PointCloud (legacy or tensor)
+    operators : str
+        One of :data:`OPERATORS`: how a point cloud gets its operators.
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat_filters._common import Site
+    >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+    >>> site.n, site.is_mesh
+    (114, True)
+    """
 
     def __init__(self, geometry, operators="reconstruct"):
         import open3d as o3d
@@ -58,11 +79,29 @@ class Site:
 
     # ------------------------------------------------------------------------ attributes
     def names(self):
+        """The vertex attributes' names.
+
+        Examples
+        --------
+        >>> import open3d as o3d
+        >>> from o3dheat_filters._common import Site
+        >>> Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)).names()
+        ['positions']
+        """
         return [k for k in self.attrs]
 
     def attribute(self, name, column=None):
         """A vertex attribute as float64 (n,) or (n, c) (trailing axes flattened row-major);
-        ``column`` picks one column (:func:`o3dheat.filters.one_column`)."""
+        ``column`` picks one column (:func:`o3dheat.filters.one_column`).
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d
+        >>> from o3dheat_filters._common import Site
+        >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+        >>> site.attribute("positions").shape, site.attribute("positions", column=2).shape
+        ((114, 3), (114,))
+        """
         from o3dheat.filters import one_column
 
         if name not in self.attrs:
@@ -79,19 +118,49 @@ class Site:
 
     def scalar(self, name, column=None):
         """One column of an attribute, (n,), by the filters' rule (:func:`o3dheat.filters.one_column`):
-        a multi-column attribute without ``column`` is refused, listing its columns."""
+        a multi-column attribute without ``column`` is refused, listing its columns.
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d
+        >>> from o3dheat_filters._common import Site
+        >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+        >>> site.scalar("positions", column=-1).shape
+        (114,)
+        """
         from o3dheat.filters import one_column
 
         a = self.attribute(name, column)
         return a if column is not None else one_column(a, name)
 
     def scalar_on_surface(self, name, column=None):
-        """(f on the input vertices, V, F of the surface, f on the surface vertices)."""
+        """(f on the input vertices, V, F of the surface, f on the surface vertices).
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d
+        >>> from o3dheat_filters._common import Site
+        >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+        >>> f, V, F, g = site.scalar_on_surface("positions", column=2)
+        >>> V.shape, F.shape, bool(np.array_equal(f, g))    # a mesh is its own surface
+        ((114, 3), (224, 3), True)
+        """
         f = self.scalar(name, column)
         V, F = self.surface()
         return f, V, F, self.to_surface(f)
 
     def set(self, name, values):
+        """Write a vertex attribute on the copy (one row per input vertex; never "positions").
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d
+        >>> from o3dheat_filters._common import Site
+        >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+        >>> site.set("f", np.zeros(site.n))
+        >>> sorted(site.names())
+        ['f', 'positions']
+        """
         values = np.ascontiguousarray(values)
         if len(values) != self.n:  # pragma: no cover - a filter bug
             raise AssertionError(f"{name}: {len(values)} rows for {self.n} vertices")
@@ -100,11 +169,32 @@ class Site:
         self.attrs[name] = self.o3d.core.Tensor(values)
 
     def result(self):
+        """The copy with the attributes written: what the filter returns (the input is unchanged).
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d
+        >>> from o3dheat_filters._common import Site
+        >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)
+        >>> site = Site(mesh)
+        >>> site.set("f", np.zeros(site.n))
+        >>> "f" in site.result().vertex, "f" in mesh.vertex
+        (True, False)
+        """
         return self.out
 
     # --------------------------------------------------------------- surface and spectrum
     def surface(self):
-        """(V, F) the operators are built on: the mesh, or the reconstruction of the points."""
+        """(V, F) the operators are built on: the mesh, or the reconstruction of the points.
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d
+        >>> from o3dheat_filters._common import Site
+        >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+        >>> [a.shape for a in site.surface()]
+        [(114, 3), (224, 3)]
+        """
         if self._surface is None:
             if self.is_mesh:
                 F = self.out.triangle.indices.numpy().astype(np.int64)
@@ -119,7 +209,16 @@ class Site:
         return self._surface
 
     def to_surface(self, f):
-        """Per-input-vertex values -> per-surface-vertex values."""
+        """Per-input-vertex values -> per-surface-vertex values.
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d
+        >>> from o3dheat_filters._common import Site
+        >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+        >>> site.to_surface(np.ones(site.n)).shape    # a mesh: the same values
+        (114,)
+        """
         if self.is_mesh or self.operators == "robust":
             return f
         from o3dheat.sampling import nearest
@@ -127,7 +226,16 @@ class Site:
         return nearest(f, self.P, self.surface()[0])
 
     def from_surface(self, g):
-        """Per-surface-vertex values -> per-input-vertex values."""
+        """Per-surface-vertex values -> per-input-vertex values.
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d
+        >>> from o3dheat_filters._common import Site
+        >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+        >>> site.from_surface(np.ones((site.n, 2))).shape
+        (114, 2)
+        """
         if self.is_mesh or self.operators == "robust":
             return g
         from o3dheat.sampling import transfer
@@ -139,6 +247,19 @@ class Site:
         return out.reshape((self.n,) + g.shape[1:])
 
     def spectrum(self, k=100, mass="consistent", cache=None):
+        """The spectrum of the surface with the mass ``mass`` (:data:`o3dheat.fem.MASS_KINDS`),
+        shared by the filters (:func:`o3dheat.filters.shared_spectrum`); robust-laplacian's for
+        point clouds with ``operators="robust"``.
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d
+        >>> from o3dheat_filters._common import Site
+        >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+        >>> s = site.spectrum(k=5, mass="lumped")
+        >>> s.k, s.mass_kind
+        (5, 'lumped')
+        """
         from o3dheat.filters import shared_spectrum
 
         if not self.is_mesh and self.operators == "robust":
@@ -168,18 +289,36 @@ def _robust_spectrum(P, k):
 def kernel_of(site, k, variant="weighted", normalize=None):
     """The heat kernel ``variant`` (:data:`o3dheat.kernel.VARIANTS`) on the site's own spectrum
     of that variant's mass; point clouds with ``operators="robust"`` have robust-laplacian's
-    mass only ("weighted")."""
+    mass only ("weighted").
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat_filters._common import Site, kernel_of
+    >>> K = kernel_of(Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)), 5, "voronoi")
+    >>> K.variant, K.spectrum.mass_kind
+    ('voronoi', 'voronoi')
+    """
     from o3dheat import HeatKernel
 
     if not site.is_mesh and site.operators == "robust" and variant != "weighted":
         raise MeshError(f"operators='robust' comes with robust-laplacian's own mass: use variant='weighted', "
                         f"or operators='reconstruct' for the {variant!r} kernel")
-    mass = VARIANTS[variant][0] if variant in VARIANTS else variant  # HeatKernel names a bad variant
+    mass = kernel.mass_of(variant)  # an unknown variant: MeshError listing them
     return HeatKernel(site.spectrum(k=k, mass=mass), variant=variant, normalize=normalize)
 
 
 def times_of(kernel, times, scales, grid="paper"):
-    """Explicit times, or ``scales`` times of the kernel's ``grid``."""
+    """Explicit times, or ``scales`` times of the kernel's ``grid``.
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat_filters._common import Site, kernel_of, times_of
+    >>> K = kernel_of(Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)), 5)
+    >>> times_of(K, (0.1, 0.2), 3).tolist(), times_of(K, None, 3).shape
+    ([0.1, 0.2], (3,))
+    """
     if times:
         return np.asarray(times, dtype=np.float64)
     return kernel.scales(scales, grid=grid)

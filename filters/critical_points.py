@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
 from o3dheat.errors import MeshError
 
-from ._common import Site
+from ._common import Operators, Site
 
 
 @dataclass(frozen=True)
@@ -49,7 +48,7 @@ class CriticalPointsFilter:
     delta: float | None = None
     keep_fraction: float | None = None
     output: str | None = None
-    operators: Literal["reconstruct", "robust"] = "reconstruct"
+    operators: Operators = "reconstruct"
 
     outputs = ("<attribute>_critical",)
 

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 from o3dheat.errors import MeshError
+from o3dheat.kernel import mass_of
 
-from ._common import Site, Variant, kernel_of
+from ._common import Operators, Site, Variant, kernel_of
 
 
 @dataclass(frozen=True)
@@ -32,8 +32,9 @@ class FeatureApprox:
         Persistence threshold of the δ-simplification (units of f).
     keep_fraction : float or None
         Alternative to delta. With neither, every critical point is a feature.
-    variant : {"weighted", "linear", "voronoi", "lumped"}
-        The kernel, on the spectrum of its own mass (weighted = the paper's).
+    variant : str
+        The kernel, a key of :data:`o3dheat.kernel.VARIANTS` (each on the spectrum of its own mass;
+        "weighted" is the paper's).
     k : int
         Eigenpairs.
     operators : {"reconstruct", "robust"}
@@ -57,7 +58,7 @@ class FeatureApprox:
     keep_fraction: float | None = None
     variant: Variant = "weighted"
     k: int = 100
-    operators: Literal["reconstruct", "robust"] = "reconstruct"
+    operators: Operators = "reconstruct"
 
     outputs = ("<attribute>_glob", "<attribute>_loc")
 
@@ -68,6 +69,7 @@ class FeatureApprox:
             raise MeshError("t must be >= 0")
         if self.delta is not None and self.keep_fraction is not None:
             raise MeshError("give delta or keep_fraction, not both")
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
 
     def __call__(self, geometry):
         import o3dheat

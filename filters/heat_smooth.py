@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 from o3dheat.errors import MeshError
+from o3dheat.kernel import mass_of
 
-from ._common import Grid, Site, Variant, kernel_of, times_of
+from ._common import Grid, Normalization, Operators, Site, Variant, kernel_of, times_of
 
 
 @dataclass(frozen=True)
@@ -28,14 +28,15 @@ class HeatSmooth:
         Times (paper convention ``exp(−λ t / 2)``). Default: the paper's ``scales``.
     scales : int
         Number of scales of ``grid`` when ``times`` is not given.
-    grid : {"paper", "log"}
-        "paper": ``t_i = (i / scales) / λ_k``; "log": from ``1/λ_k`` to ``2 ln(100)/λ_2`` (the
-        whole range, to nearly constant). See :meth:`o3dheat.HeatKernel.scales`.
-    variant : {"weighted", "linear", "voronoi", "lumped"}
-        The kernel, each on the spectrum of its own mass (:data:`o3dheat.kernel.VARIANTS`;
+    grid : str
+        One of :data:`o3dheat.kernel.GRIDS`. "paper": ``t_i = (i / scales) / λ_k``; "log": from
+        ``1/λ_k`` to ``2 ln(100)/λ_2`` (the whole range, to nearly constant). See
+        :meth:`o3dheat.HeatKernel.scales`.
+    variant : str
+        The kernel, a key of :data:`o3dheat.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
-    normalize : {None, "lambda2"}
-        "lambda2": the scale-invariant kernel.
+    normalize : None or str
+        One of :data:`o3dheat.kernel.NORMALIZATIONS`; "lambda2": the scale-invariant kernel.
     k : int
         Eigenpairs.
     output : str or None
@@ -57,16 +58,17 @@ class HeatSmooth:
     scales: int = 10
     grid: Grid = "paper"
     variant: Variant = "weighted"
-    normalize: Literal[None, "lambda2"] = None
+    normalize: Normalization = None
     k: int = 100
     output: str | None = None
-    operators: Literal["reconstruct", "robust"] = "reconstruct"
+    operators: Operators = "reconstruct"
 
     outputs = ("<attribute>_smooth",)
 
     def __post_init__(self):
         if self.k < 1 or self.scales < 1:
             raise MeshError("k and scales must be positive")
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
         if self.times is not None and any(t < 0 for t in self.times):
             raise MeshError("times must be >= 0")
 

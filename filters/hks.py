@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 from o3dheat.errors import MeshError
+from o3dheat.kernel import HKS_DEFAULT, mass_of
 
-from ._common import Grid, HksForm, Site, Variant, kernel_of, times_of
+from ._common import Grid, HksForm, Normalization, Operators, Site, Variant, kernel_of, times_of
 
 
 @dataclass(frozen=True)
@@ -18,17 +18,19 @@ class Hks:
     ----------
     scales : int
         Number of scales of ``grid`` when ``times`` is not given.
-    grid : {"paper", "log"}
-        The scale grid (:meth:`o3dheat.HeatKernel.scales`).
+    grid : str
+        The scale grid, one of :data:`o3dheat.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales`).
     times : list of float or None
         Times (paper convention ``exp(−λ t / 2)``).
-    form : {"density", "paper"}
-        "density" (the default everywhere): ``Σ e^{−λt/2} x(i)²`` (the usual HKS, stable across
+    form : str
+        One of :data:`o3dheat.kernel.HKS_FORMS`: "density" (the default everywhere,
+        :data:`o3dheat.kernel.HKS_DEFAULT`): ``Σ e^{−λt/2} x(i)²`` (the usual HKS, stable across
         samplings); "paper": the kernel diagonal ``Σ e^{−λt/2} x(i) (W x)(i)``.
-    variant : {"weighted", "linear", "voronoi", "lumped"}
-        The kernel, each on the spectrum of its own mass (:data:`o3dheat.kernel.VARIANTS`).
-    normalize : {None, "lambda2"}
-        "lambda2": scale-invariant eigenvalues.
+    variant : str
+        The kernel, a key of :data:`o3dheat.kernel.VARIANTS` (each on the spectrum of its own mass;
+        "weighted" is the paper's).
+    normalize : None or str
+        One of :data:`o3dheat.kernel.NORMALIZATIONS`; "lambda2": scale-invariant eigenvalues.
     k : int
         Eigenpairs.
     output : str
@@ -47,18 +49,19 @@ class Hks:
     scales: int = 10
     times: tuple[float, ...] | None = None
     grid: Grid = "paper"
-    form: HksForm = "density"
+    form: HksForm = HKS_DEFAULT
     variant: Variant = "weighted"
-    normalize: Literal[None, "lambda2"] = None
+    normalize: Normalization = None
     k: int = 100
     output: str = "hks"
-    operators: Literal["reconstruct", "robust"] = "reconstruct"
+    operators: Operators = "reconstruct"
 
     outputs = ("hks",)
 
     def __post_init__(self):
         if self.k < 1 or self.scales < 1:
             raise MeshError("k and scales must be positive")
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
 
     def __call__(self, geometry):
         site = Site(geometry, self.operators)

@@ -9,7 +9,7 @@ import numpy as np
 
 from o3dheat.errors import MeshError
 
-from ._common import Site
+from ._common import Operators, Site
 
 
 @dataclass(frozen=True)
@@ -50,7 +50,7 @@ class Scalar:
     sigma: float = 0.05
     seed: int = 0
     output: str | None = None
-    operators: Literal["reconstruct", "robust"] = "reconstruct"
+    operators: Operators = "reconstruct"
 
     outputs = ("<output>",)
 

@@ -15,8 +15,8 @@ import logging
 import sys
 from pathlib import Path
 
+from . import fem, kernel
 from .errors import MeshError, SolverError
-from .spectrum import MASS_KINDS
 
 __all__ = ["main"]
 
@@ -68,8 +68,8 @@ replace an input. Default scheduler: a local Dask cluster, one worker per core."
 study.toml:
   k = 60
   scales = 10
-  grid = "paper"                     # or "log": each kernel's scales on its reference spectrum
-  kernels = ["weighted", "linear", "voronoi", "lumped"]
+  grid = "paper"                     # <GRIDS>: each kernel's scales on its reference spectrum
+  kernels = <VARIANTS>   # o3dheat.kernel.VARIANTS (default: all)
   descriptors = ["hks_density", "hks_paper", "smooth_height", "eigenvalues"]
   [meshes]
   bunny = "builtin:bunny@20000"      # embedded, decimated to 20000 faces; or a file path
@@ -88,8 +88,16 @@ The folder is created (with its parents) before any computation.""",
 }
 
 
+def _epilog(name):
+    """The examples of a command, with the lists defined elsewhere filled in (read now)."""
+    import json
+
+    return (EXAMPLES[name].replace("<VARIANTS>", json.dumps(list(kernel.VARIANTS), ensure_ascii=False))
+            .replace("<GRIDS>", "one of " + ", ".join(map(json.dumps, kernel.GRIDS))))
+
+
 def _sub(sub, name, help_text):
-    return sub.add_parser(name, help=help_text, description=help_text, epilog=EXAMPLES[name],
+    return sub.add_parser(name, help=help_text, description=help_text, epilog=_epilog(name),
                           formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
@@ -150,8 +158,9 @@ def _parser():
     s = _sub(sub, "spectrum", "compute the smallest eigenpairs of a mesh and save them")
     s.add_argument("input", help="mesh file")
     s.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
-    s.add_argument("--mass", default="consistent", choices=MASS_KINDS,
-                   help="mass of L x = λ B x: consistent (the paper's), lumped, voronoi or identity (B := I)")
+    s.add_argument("--mass", default="consistent", choices=list(fem.MASS_KINDS),
+                   help="the mass B of L x = λ B x (o3dheat.fem.MASS_KINDS; default: %(default)s): "
+                        + "; ".join(f"{name}: {text}" for name, text in fem.MASS_KINDS.items()))
     s.add_argument("-o", "--out", required=True,
                    help="output .npz (eigenvalues, eigenvectors, residuals), in a folder that exists")
     s.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")

@@ -15,7 +15,10 @@ from .errors import MeshError, SolverError
 from .linalg import factorize
 from .mesh import prepare
 
-__all__ = ["diffuse"]
+__all__ = ["diffuse", "SCHEMES"]
+
+#: time-stepping schemes of :func:`diffuse`: eq. (8) and backward Euler
+SCHEMES = ("explicit", "implicit")
 
 
 def _largest_rate(L, B_solve, n, iters=40, seed=0):
@@ -33,6 +36,14 @@ def _largest_rate(L, B_solve, n, iters=40, seed=0):
     return 1.05 * lam
 
 
+def _mass_solver(B, backend):
+    """``b -> B⁻¹ b``: a division for a diagonal mass, one factorization otherwise."""
+    d = B.diagonal()
+    if sp.csc_matrix(B - sp.diags(d)).count_nonzero() == 0:
+        return lambda b: b / (d[:, None] if b.ndim == 2 else d)
+    return factorize(B, backend=backend).solve
+
+
 def diffuse(mesh, f, dt, steps, scheme="explicit", mass="consistent", backend="auto",
             return_history=False):
     """Diffuse per-vertex fields by time stepping (paper eq. (8), or backward Euler).
@@ -47,12 +58,14 @@ def diffuse(mesh, f, dt, steps, scheme="explicit", mass="consistent", backend="a
         :meth:`HeatKernel.smooth`).
     steps : int
         Number of steps (>= 0).
-    scheme : {"explicit", "implicit"}
-        "explicit" is eq. (8); it is stable only for ``dt <= 4 / λ_max``, checked beforehand
+    scheme : str
+        One of :data:`SCHEMES`. "explicit" is eq. (8); it is stable only for ``dt <= 4 / λ_max``, checked beforehand
         (a larger dt raises :class:`MeshError` naming the largest stable one). "implicit" is
         unconditionally stable.
-    mass : {"consistent", "identity"}
-        ``B`` (the paper) or ``I`` (the paper's "B := I" variant).
+    mass : str
+        ``B``, a key of :data:`o3dheat.fem.MASS_KINDS`: "consistent" is the paper's; the steps
+        converge to the heat kernel of the variant with this mass
+        (:data:`o3dheat.kernel.VARIANTS`, e.g. "identity": the paper's "B := I" kernel).
     backend : str
         Factorization backend (:func:`o3dheat.linalg.factorize`).
     return_history : bool
@@ -72,22 +85,20 @@ def diffuse(mesh, f, dt, steps, scheme="explicit", mass="consistent", backend="a
     >>> bool(np.abs(g).max() < np.abs(z).max())
     True
     """
-    if scheme not in ("explicit", "implicit"):
-        raise MeshError(f"unknown scheme {scheme!r}: use 'explicit' or 'implicit'")
-    if mass not in ("consistent", "identity"):
-        raise MeshError(f"unknown mass {mass!r}: use 'consistent' or 'identity'")
+    if not isinstance(scheme, str) or scheme not in SCHEMES:
+        raise MeshError(f"unknown scheme {scheme!r}: use one of {', '.join(SCHEMES)}")
+    fem.check_mass_kind(mass)
     if not (np.isscalar(dt) and np.isfinite(dt) and dt > 0):
         raise MeshError(f"dt must be a positive number, got {dt!r}")
     steps = checks.count(steps, "steps", minimum=0)
     prep = prepare(mesh)
     f = checks.field(f, prep.n_input)
     F = prep.restrict(f).copy()
-    L = fem.stiffness_matrix(prep.V, prep.F)
+    L, B, _ = fem.operators(prep.V, prep.F, mass)
     r = len(prep.V)
-    B = sp.identity(r, format="csc") if mass == "identity" else fem.mass_matrix(prep.V, prep.F)
     history = [F.copy()] if return_history else None
     if scheme == "explicit":
-        solve = (lambda b: b) if mass == "identity" else factorize(B, backend=backend).solve
+        solve = _mass_solver(B, backend)
         lam_max = _largest_rate(L, solve, r)
         if dt * lam_max > 4.0:
             raise MeshError(f"explicit scheme unstable for dt={dt:g}: the largest stable step here is "

@@ -24,7 +24,36 @@ import scipy.sparse as sp
 from .errors import MeshError
 from .mesh import _edges, face_areas, unit_scale
 
-__all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "operators", "mean_curvature", "gaussian_curvature"]
+__all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "operators", "mean_curvature", "gaussian_curvature",
+           "MASS_KINDS", "check_mass_kind"]
+
+#: mass kind -> what the matrix is: the one definition of the masses of ``L x = λ B x``, used by
+#: :func:`o3dheat.eigensolve`, :func:`o3dheat.diffuse`, the kernel variants
+#: (:data:`o3dheat.kernel.VARIANTS` names a mass of this table) and the command (``--mass``)
+MASS_KINDS = {
+    "consistent": "the paper's consistent FEM mass B, B_rs = (|t_r| + |t_s|)/12, B_ii = Σ|t|/6",
+    "lumped": "diag(B 1), the row sums of B: a third of the area of the triangles at each vertex",
+    "voronoi": "diag(a), the mixed Voronoi areas a of Meyer et al. (2003)",
+    "identity": "I, the paper's 'B := I' (eigenpairs of L x = λ x)",
+}
+
+
+def check_mass_kind(kind):
+    """``kind`` if it is a key of :data:`MASS_KINDS`, else a :class:`~o3dheat.MeshError` listing them.
+
+    Examples
+    --------
+    >>> from o3dheat.fem import check_mass_kind
+    >>> check_mass_kind("lumped")
+    'lumped'
+    >>> check_mass_kind("area")
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: unknown mass kind 'area': use one of consistent, lumped, voronoi, identity
+    """
+    if not isinstance(kind, str) or kind not in MASS_KINDS:
+        raise MeshError(f"unknown mass kind {kind!r}: use one of {', '.join(MASS_KINDS)}")
+    return kind
 
 
 def _corner_geometry(V, F):
@@ -139,8 +168,8 @@ def operators(V, F, mass="consistent"):
     V : (n, 3) float64 ndarray
     F : (m, 3) int ndarray
         Every face with a positive area.
-    mass : {"consistent", "lumped", "voronoi", "identity"}
-        As in :func:`mass_matrix`; "identity" gives ``B = I``.
+    mass : str
+        A key of :data:`MASS_KINDS`, as in :func:`mass_matrix`.
 
     Returns
     -------
@@ -157,18 +186,14 @@ def operators(V, F, mass="consistent"):
     >>> round(float(B.sum()), 12), round(float(a.sum()), 12)
     (6.0, 6.0)
     """
+    check_mass_kind(mass)
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     n = len(V)
     geometry = _corner_geometry(V, F)
     L = _stiffness(n, F, geometry[1])
     areas = _voronoi(n, F, *geometry)
-    if mass == "identity":
-        B = sp.identity(n, format="csc")
-    elif mass == "voronoi":
-        B = sp.diags(areas).tocsc()
-    else:
-        B = mass_matrix(V, F, mass)
+    B = sp.diags(areas).tocsc() if mass == "voronoi" else mass_matrix(V, F, mass)
     return L, B, areas
 
 
@@ -179,15 +204,16 @@ def mass_matrix(V, F, kind="consistent"):
     ----------
     V : (n, 3) float64 ndarray
     F : (m, 3) int ndarray
-    kind : {"consistent", "lumped", "voronoi"}
-        "consistent": ``B[i, j] = (|t_r| + |t_s|)/12``, ``B[i, i] = sum |t|/6`` (the paper's B);
-        "lumped": its row sums on the diagonal; "voronoi": mixed Voronoi areas on the diagonal.
+    kind : str
+        A key of :data:`MASS_KINDS`: "consistent", ``B[i, j] = (|t_r| + |t_s|)/12``,
+        ``B[i, i] = sum |t|/6`` (the paper's B); "lumped", its row sums on the diagonal;
+        "voronoi", the mixed Voronoi areas on the diagonal; "identity", ``I``.
 
     Returns
     -------
     B : (n, n) scipy.sparse.csc_matrix
-        Symmetric positive definite on referenced vertices; ``1ᵀ B 1`` is the surface area in
-        squared units of ``V``.
+        Symmetric positive definite on referenced vertices; except for "identity", ``1ᵀ B 1`` is
+        the surface area in squared units of ``V``.
 
     Examples
     --------
@@ -196,15 +222,16 @@ def mass_matrix(V, F, kind="consistent"):
     >>> float(np.ones(len(V)) @ o3dheat.mass_matrix(V, F) @ np.ones(len(V)))
     6.0
     """
+    check_mass_kind(kind)
     n = len(V)
     F = np.asarray(F, dtype=np.int64)
+    if kind == "identity":
+        return sp.identity(n, format="csc")
     if kind == "voronoi":
         return sp.diags(voronoi_areas(V, F)).tocsc()
     area = face_areas(np.asarray(V, dtype=np.float64), F)
     if kind == "lumped":
         return sp.diags(np.bincount(F.reshape(-1), weights=np.repeat(area / 3, 3), minlength=n)).tocsc()
-    if kind != "consistent":
-        raise MeshError(f"unknown mass kind {kind!r}: use 'consistent', 'lumped' or 'voronoi'")
     I = np.concatenate([F[:, 0], F[:, 1], F[:, 2]])
     J = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
     off = np.tile(area / 12, 3)

@@ -39,7 +39,7 @@ import numpy as np
 
 from .errors import MeshError
 
-__all__ = ["GROUP", "names", "describe", "get", "apply", "Chain", "Parameter", "shared_spectrum",
+__all__ = ["GROUP", "names", "describe", "get", "apply", "Chain", "Parameter", "OneOf", "shared_spectrum",
            "set_disk_cache", "parse_value", "refresh", "one_column", "plain_text"]
 
 GROUP = "o3dheat.filters"
@@ -57,7 +57,15 @@ def _entry_points():
 
 
 def refresh():
-    """Forget the discovered filters (after installing a plugin in a running session)."""
+    """Forget the discovered filters (after installing a plugin in a running session).
+
+    Examples
+    --------
+    >>> import o3dheat.filters as flt
+    >>> flt.refresh()
+    >>> "hks" in flt.names()          # found again, lazily
+    True
+    """
     global _EPS
     import importlib
 
@@ -98,7 +106,15 @@ def _class(name):
 
 @dataclasses.dataclass(frozen=True)
 class Parameter:
-    """One parameter of a filter: name, type (as text), default and help (from the docstring)."""
+    """One parameter of a filter: name, type (as text), default and help (from the docstring).
+
+    Examples
+    --------
+    >>> import o3dheat.filters as flt
+    >>> p = flt.describe("hks")["parameters"][0]
+    >>> p.name, p.type, p.default
+    ('scales', 'int', 10)
+    """
 
     name: str
     type: str
@@ -131,14 +147,76 @@ def _doc_params(doc):
     return {k: " ".join(v) for k, v in out.items()}
 
 
+class OneOf:
+    """A filter parameter's choices that are defined elsewhere and read when a value is checked,
+    never copied: annotate the field ``typing.Annotated[str, OneOf(lambda: CHOICES)]``.
+
+    The built-in filters' ``variant`` is ``Annotated[str, OneOf(lambda: o3dheat.kernel.VARIANTS)]``:
+    a variant added to :data:`o3dheat.kernel.VARIANTS` is accepted at once, and :func:`describe`
+    lists the choices of the moment (as ``Literal[...]``, like a fixed ``typing.Literal``).
+
+    Parameters
+    ----------
+    choices : callable
+        Returns the allowed values (any iterable: a tuple, the keys of a dict...).
+
+    Examples
+    --------
+    >>> import typing
+    >>> from o3dheat.filters import OneOf
+    >>> colours = {"red": 1, "blue": 2}
+    >>> Colour = typing.Annotated[str, OneOf(lambda: colours)]
+    >>> colours["green"] = 3                 # defined later: still accepted
+    >>> OneOf.of(Colour).choices()
+    ('red', 'blue', 'green')
+    """
+
+    def __init__(self, choices):
+        if not callable(choices):
+            raise TypeError("OneOf takes a callable returning the choices (read when a value is checked)")
+        self._choices = choices
+
+    def choices(self):
+        """The allowed values now, as a tuple.
+
+        Examples
+        --------
+        >>> from o3dheat.filters import OneOf
+        >>> OneOf(lambda: ("a", "b")).choices()
+        ('a', 'b')
+        """
+        return tuple(self._choices())
+
+    @staticmethod
+    def of(tp):
+        """The :class:`OneOf` of an annotation ``Annotated[..., OneOf(...)]``, else None.
+
+        Examples
+        --------
+        >>> import typing
+        >>> from o3dheat.filters import OneOf
+        >>> OneOf.of(typing.Annotated[str, OneOf(lambda: "ab")]).choices(), OneOf.of(str)
+        (('a', 'b'), None)
+        """
+        if typing.get_origin(tp) is typing.Annotated:
+            return next((m for m in tp.__metadata__ if isinstance(m, OneOf)), None)
+        return None
+
+    def __repr__(self):
+        return "OneOf(" + ", ".join(map(repr, self.choices())) + ")"
+
+
 def _type_text(tp):
     if tp in (int, float, str, bool):
         return tp.__name__
+    one_of = OneOf.of(tp)
+    if one_of is not None:
+        return "Literal[" + ", ".join(map(repr, one_of.choices())) + "]"
     return str(tp).replace("typing.", "")
 
 
 def _hints(cls):
-    return typing.get_type_hints(cls, globalns=vars(sys.modules[cls.__module__]))
+    return typing.get_type_hints(cls, globalns=vars(sys.modules[cls.__module__]), include_extras=True)
 
 
 def describe(name):
@@ -263,6 +341,12 @@ def _check(tp, value, where):
     args = typing.get_args(tp)
     if tp is typing.Any:
         return value
+    if origin is typing.Annotated:
+        value = _check(args[0], value, where)
+        one_of = OneOf.of(tp)
+        if one_of is not None and value not in one_of.choices():
+            raise MeshError(f"{where} must be one of {', '.join(map(repr, one_of.choices()))}, got {value!r}")
+        return value
     if origin is typing.Union or (sys.version_info >= (3, 10) and origin is __import__("types").UnionType):
         if value is None and type(None) in args:
             return None
@@ -322,6 +406,8 @@ def parse_value(text, tp):
     (0.01, 100.0)
     """
     origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin is typing.Annotated:  # its metadata is checked with the value (get)
+        return parse_value(text, args[0])
     low = text.strip().lower()
     if origin is typing.Union or (sys.version_info >= (3, 10) and origin is __import__("types").UnionType):
         if low in ("none", "null", "") and type(None) in args:
@@ -436,7 +522,20 @@ class Chain:
             self.append(s)
 
     def append(self, step, **params):
-        """Add a filter (an instance, a name with params, or a (name, params) pair)."""
+        """Add a filter (an instance, a name with params, or a (name, params) pair).
+
+        Returns
+        -------
+        Chain
+            This chain (calls can be chained).
+
+        Examples
+        --------
+        >>> import o3dheat.filters as flt
+        >>> chain = flt.Chain().append("scalar", kind="height").append(("hks", {"k": 20}))
+        >>> len(chain)
+        2
+        """
         if isinstance(step, str):
             step = get(step, **params)
         elif isinstance(step, (tuple, list)) and len(step) == 2 and isinstance(step[0], str):
@@ -456,7 +555,17 @@ class Chain:
         return "Chain([" + ", ".join(map(repr, self.steps)) + "])"
 
     def __call__(self, mesh, progress=None):
-        """Run every step on the result of the previous one; ``progress(i, step)`` is called first."""
+        """Run every step on the result of the previous one; ``progress(i, step)`` is called first.
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat.filters as flt
+        >>> chain = flt.Chain([("scalar", {"kind": "height"})])
+        >>> out = chain(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8), progress=lambda i, step: print(i))
+        0
+        >>> "height" in out.vertex
+        True
+        """
         for i, step in enumerate(self.steps):
             if progress:
                 progress(i, step)
@@ -501,17 +610,44 @@ class Chain:
                    progress=progress)
 
     def to_dict(self):
+        """The chain as plain data: ``{"filter": [{"name": ..., parameter: value, ...}, ...]}`` (None
+        values left out), as written by :meth:`save`.
+
+        Examples
+        --------
+        >>> import o3dheat.filters as flt
+        >>> flt.Chain([("colorize", {"attribute": "hks", "column": 3})]).to_dict()
+        {'filter': [{'name': 'colorize', 'attribute': 'hks', 'column': 3, 'colormap': 'coolwarm', 'output': 'colors'}]}
+        """
         return {"filter": [{"name": _name_of(s), **_plain(dataclasses.asdict(s))} for s in self.steps]}
 
     def save(self, path):
-        """Write the chain as TOML (atomically)."""
+        """Write the chain as TOML (atomically).
+
+        Examples
+        --------
+        >>> import os, tempfile, o3dheat.filters as flt
+        >>> path = os.path.join(tempfile.mkdtemp(), "chain.toml")
+        >>> flt.Chain([("scalar", {"kind": "height"})]).save(path)
+        >>> print(open(path).read().splitlines()[2])
+        [[filter]]
+        """
         from .io import atomic_write_text
 
         atomic_write_text(path, _to_toml(self.to_dict()))
 
     @classmethod
     def load(cls, path):
-        """Read a chain from a TOML file (``[[filter]]`` tables with ``name`` and parameters)."""
+        """Read a chain from a TOML file (``[[filter]]`` tables with ``name`` and parameters).
+
+        Examples
+        --------
+        >>> import os, tempfile, o3dheat.filters as flt
+        >>> path = os.path.join(tempfile.mkdtemp(), "chain.toml")
+        >>> flt.Chain([("scalar", {"kind": "height"}), ("hks", {"k": 20})]).save(path)
+        >>> [type(step).__name__ for step in flt.Chain.load(path)]
+        ['Scalar', 'Hks']
+        """
         from .io import read_toml
 
         path = Path(path)
@@ -573,6 +709,14 @@ def shared_spectrum(V, F, k=100, mass="consistent", cache=None):
     Returns
     -------
     Spectrum
+
+    Examples
+    --------
+    >>> import open3d as o3d, o3dheat
+    >>> V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+    >>> s = o3dheat.filters.shared_spectrum(V, F, k=5)
+    >>> s is o3dheat.filters.shared_spectrum(V, F, k=5)      # computed once
+    True
     """
     from .spectrum import shared_eigensolve
 

@@ -37,10 +37,14 @@ from . import checks
 from .errors import MeshError, SolverError
 from .spectrum import Spectrum, _all_zero
 
-__all__ = ["HeatKernel", "heat_kernel", "VARIANTS", "GRIDS", "HKS_FORMS", "HKS_DEFAULT"]
+__all__ = ["HeatKernel", "heat_kernel", "VARIANTS", "GRIDS", "HKS_FORMS", "HKS_DEFAULT", "NORMALIZATIONS",
+           "mass_of", "variant_of_mass"]
 
-#: kernel variant -> (mass of its eigenproblem, what it is in one line). The one definition used by
-#: the filters, the command, the studies and the figures.
+#: kernel variant -> (mass of its eigenproblem, a key of :data:`o3dheat.fem.MASS_KINDS`; what it is
+#: in one line). The one definition used by the filters, the command, the studies and the figures:
+#: a variant added here is reachable from the ``hks``, ``heat_smooth`` and ``feature_approx``
+#: filters, ``o3dheat apply`` and ``o3dheat study`` without other edits (a new mass kind is added to
+#: :mod:`o3dheat.fem`).
 VARIANTS = {
     "weighted": ("consistent", "the paper's kernel X D_t Xᵀ B, B the consistent FEM mass (§2.1)"),
     "linear": ("identity", "the paper's B := I kernel X D_t Xᵀ, eigenpairs of L x = λ x (§2.1)"),
@@ -52,10 +56,54 @@ GRIDS = ("paper", "log")
 #: heat kernel signature forms of :meth:`HeatKernel.hks`; the default everywhere is "density"
 HKS_FORMS = ("density", "paper")
 HKS_DEFAULT = "density"
+#: eigenvalue normalisations of :class:`HeatKernel` (``normalize=``): None, or "lambda2" (divided by
+#: the first non-zero eigenvalue: the scale-invariant kernel, §2.2)
+NORMALIZATIONS = (None, "lambda2")
+
+
+def _unknown_variant(variant):
+    return MeshError(f"unknown kernel variant {variant!r}: use one of {', '.join(VARIANTS)}")
+
+
+def mass_of(variant):
+    """The mass kind of a kernel variant's eigenproblem (:data:`VARIANTS`).
+
+    Parameters
+    ----------
+    variant : str
+        A key of :data:`VARIANTS`.
+
+    Returns
+    -------
+    str
+        A key of :data:`o3dheat.fem.MASS_KINDS`.
+
+    Raises
+    ------
+    MeshError
+        An unknown variant (the message lists them).
+
+    Examples
+    --------
+    >>> from o3dheat.kernel import mass_of
+    >>> mass_of("weighted"), mass_of("linear")
+    ('consistent', 'identity')
+    """
+    if not isinstance(variant, str) or variant not in VARIANTS:
+        raise _unknown_variant(variant)
+    return VARIANTS[variant][0]
 
 
 def variant_of_mass(mass_kind):
-    """The variant whose eigenproblem uses ``mass_kind`` ("given" for operators built elsewhere)."""
+    """The variant whose eigenproblem uses ``mass_kind`` (the first in :data:`VARIANTS`; "given"
+    for operators built elsewhere, :func:`o3dheat.spectrum.eigensolve_operators`).
+
+    Examples
+    --------
+    >>> from o3dheat.kernel import variant_of_mass
+    >>> variant_of_mass("voronoi"), variant_of_mass("given")
+    ('voronoi', 'given')
+    """
     for name, (mass, _) in VARIANTS.items():
         if mass == mass_kind:
             return name
@@ -71,8 +119,8 @@ def heat_kernel(mesh, k=100, variant="weighted", normalize=None, transfer=None, 
     mesh : Open3D mesh or (V, F)
     k : int
         Eigenpairs.
-    variant : {"weighted", "linear", "voronoi", "lumped"}
-        See :data:`VARIANTS`.
+    variant : str
+        A key of :data:`VARIANTS`.
     normalize, transfer
         As for :class:`HeatKernel`.
     **eigensolve_options
@@ -92,11 +140,10 @@ def heat_kernel(mesh, k=100, variant="weighted", normalize=None, transfer=None, 
     """
     from .spectrum import eigensolve
 
-    if variant not in VARIANTS:
-        raise MeshError(f"unknown kernel variant {variant!r}: use one of {', '.join(VARIANTS)}")
+    mass = mass_of(variant)
     if "mass" in eigensolve_options:
         raise MeshError("heat_kernel chooses the mass from the variant: do not pass mass=")
-    spec = eigensolve(mesh, k=k, mass=VARIANTS[variant][0], **eigensolve_options)
+    spec = eigensolve(mesh, k=k, mass=mass, **eigensolve_options)
     return HeatKernel(spec, variant=variant, normalize=normalize, transfer=transfer)
 
 
@@ -107,14 +154,15 @@ class HeatKernel:
     ----------
     spectrum : Spectrum
         From :func:`o3dheat.eigensolve`.
-    variant : {None, "weighted", "linear", "voronoi", "lumped"}
-        The kernel (:data:`VARIANTS`). It is fixed by the spectrum's mass: None takes the variant
-        of ``spectrum.mass_kind``; a variant whose mass differs is refused (compute the spectrum
-        with ``eigensolve(mesh, k, mass=VARIANTS[variant][0])``, or use :func:`heat_kernel`). A
-        spectrum of :func:`o3dheat.spectrum.eigensolve_operators` (mass "given") takes None or
-        "weighted" (its own mass as the weight).
-    normalize : {None, "lambda2"}
-        "lambda2" divides the eigenvalues by the first non-zero one (scale-invariant kernel, §2.2).
+    variant : None or str
+        The kernel, a key of :data:`VARIANTS`, whose mass must be the spectrum's: None takes the
+        (first) variant of ``spectrum.mass_kind``; a variant whose mass differs is refused
+        (compute the spectrum with ``eigensolve(mesh, k, mass=mass_of(variant))``, or use
+        :func:`heat_kernel`). A spectrum of :func:`o3dheat.spectrum.eigensolve_operators` (mass
+        "given") takes None or "weighted" (its own mass as the weight).
+    normalize : None or str
+        One of :data:`NORMALIZATIONS`: "lambda2" divides the eigenvalues by the first non-zero
+        one (scale-invariant kernel, §2.2).
     transfer : callable or sequence of float, optional
         Transfer function φ (§2.4): a vectorised callable ``φ(λ)`` or polynomial coefficients in
         increasing degree ``c0 + c1 λ + c2 λ² ...``. Values must be finite; a negative φ amplifies.
@@ -136,16 +184,13 @@ class HeatKernel:
         own = variant_of_mass(spectrum.mass_kind)
         if variant is None or (own == "given" and variant == "weighted"):
             variant = own
-        elif variant not in VARIANTS:
-            raise MeshError(f"unknown kernel variant {variant!r}: use one of {', '.join(VARIANTS)}")
-        elif variant != own:
-            need = VARIANTS[variant][0]
+        elif (need := mass_of(variant)) != spectrum.mass_kind:
             raise MeshError(f"the {variant!r} kernel is the heat kernel of the {need!r} mass, but this spectrum "
                             f"was computed with mass={spectrum.mass_kind!r} (X D_t Xᵀ W with another W does not "
                             f"keep constants): use o3dheat.eigensolve(mesh, k, mass={need!r}) or "
                             f"o3dheat.heat_kernel(mesh, k, variant={variant!r})")
-        if normalize not in (None, "lambda2"):
-            raise MeshError(f"unknown normalize {normalize!r}: use None or 'lambda2'")
+        if not (normalize is None or isinstance(normalize, str)) or normalize not in NORMALIZATIONS:
+            raise MeshError(f"unknown normalize {normalize!r}: use one of {', '.join(map(repr, NORMALIZATIONS))}")
         self.spectrum = spectrum
         self.variant = variant
         self.normalize = normalize
@@ -181,6 +226,14 @@ class HeatKernel:
     # ----------------------------------------------------------------------------------- helpers
     @property
     def n(self):
+        """Number of vertices.
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> o3dheat.heat_kernel(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8), k=5).n
+        114
+        """
         return self.spectrum.n
 
     def _weigh(self, f):
@@ -206,6 +259,15 @@ class HeatKernel:
         Returns
         -------
         (k,) or (k, T) float64 ndarray
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> K = o3dheat.heat_kernel(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16), k=4)
+        >>> K.filter_factors(1.0).round(1).tolist()      # exp(-λ t / 2), λ ≈ 0, 2, 2, 2
+        [1.0, 0.4, 0.4, 0.4]
+        >>> K.filter_factors([0.5, 1.0]).shape
+        (4, 2)
         """
         t_arr = checks.times(t)
         with np.errstate(over="ignore"):
@@ -237,7 +299,16 @@ class HeatKernel:
 
     # ----------------------------------------------------------------------------------- the map
     def coefficients(self, f):
-        """Spectral coefficients ``Xᵀ W f`` (for "weighted": ``⟨f, x_i⟩_B``), shape (k,) or (k, c)."""
+        """Spectral coefficients ``Xᵀ W f`` (for "weighted": ``⟨f, x_i⟩_B``), shape (k,) or (k, c).
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d, o3dheat
+        >>> K = o3dheat.heat_kernel(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16), k=4)
+        >>> c = K.coefficients(np.ones(K.n))      # a constant: only on the constant eigenvector
+        >>> bool(np.allclose(c[1:], 0)), bool(c[0] > 0)
+        (True, True)
+        """
         f, p = self._unit(self._field(f))
         return self._back(self.spectrum.eigenvectors.T @ self._weigh(f), p, "the spectral coefficients")
 
@@ -288,9 +359,10 @@ class HeatKernel:
         ----------
         t : float or (T,) array_like
             Times (>= 0), paper convention.
-        form : {"density", "paper"}
-            "density" (the default everywhere in o3dheat): ``Σ_b e^{-λ_b t/2} x_b(i)²``, the usual
-            HKS of Sun et al. (units 1/area for the area-weighted variants; stable across samplings).
+        form : str
+            One of :data:`HKS_FORMS`. "density" (the default everywhere in o3dheat,
+            :data:`HKS_DEFAULT`): ``Σ_b e^{-λ_b t/2} x_b(i)²``, the usual HKS of Sun et al. (units
+            1/area for the area-weighted variants; stable across samplings).
             "paper": the diagonal of this kernel, ``K_t(i, i) = Σ_b e^{-λ_b t/2} x_b(i) (W x_b)(i)``
             (§2.2): the density times the vertex's own mass row, dimensionless but proportional to
             the local vertex area, so not comparable across samplings (equal to "density" for
@@ -331,7 +403,8 @@ class HeatKernel:
         Parameters
         ----------
         count : int
-        grid : {"paper", "log"}
+        grid : str
+            One of :data:`GRIDS`.
 
         Returns
         -------
@@ -374,6 +447,14 @@ class HeatKernel:
         Returns
         -------
         float or (T,) ndarray
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16)
+        >>> K = o3dheat.heat_kernel(mesh, k=20)
+        >>> K.error(mesh.vertex.positions.numpy()[:, 2], [0.01, 1.0]).round(2).tolist()  # grows with t
+        [0.01, 0.63]
         """
         f = self._field(f)
         if f.ndim != 1:
@@ -398,6 +479,13 @@ class HeatKernel:
         Returns
         -------
         (n,) or (n, len(i)) float64 ndarray
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> K = o3dheat.heat_kernel(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16), k=20)
+        >>> K.canonic_basis(0, 0.1).shape, K.canonic_basis([0, 5], 0.1).shape
+        ((482,), (482, 2))
         """
         idx = np.asarray(i)
         if not np.issubdtype(idx.dtype, np.integer) or idx.ndim > 1:
@@ -433,6 +521,16 @@ class HeatKernel:
         ------
         SolverError
             When ``exp(λ_k t / 2)`` overflows or exceeds 1e15 (no digit would be right).
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d, o3dheat
+        >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16)
+        >>> K = o3dheat.heat_kernel(mesh, k=20)
+        >>> f = mesh.vertex.positions.numpy()[:, 2]
+        >>> Pf = K.smooth(f, 0.0)                 # the projection on the k eigenvectors
+        >>> bool(np.allclose(K.inverse(K.smooth(f, 0.1), 0.1), Pf))
+        True
         """
         f = self._field(f)
         t = checks.times(t)
@@ -465,6 +563,15 @@ class HeatKernel:
         Returns
         -------
         float or (T,) ndarray
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16)
+        >>> K = o3dheat.heat_kernel(mesh, k=20)
+        >>> b = K.truncation_bound(mesh.vertex.positions.numpy()[:, 0] ** 2, [0.0, 0.1])
+        >>> bool(b[1] < b[0] < 0.01)              # x² is nearly in the span of 20 eigenvectors
+        True
         """
         f = self._field(f)
         B = self.spectrum.mass
@@ -493,6 +600,13 @@ class HeatKernel:
         Returns
         -------
         int
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> K = o3dheat.heat_kernel(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16), k=20)
+        >>> K.suggest_k(0.1) < K.suggest_k(0.01)  # small times need more eigenpairs
+        True
         """
         t = float(checks.times(t))
         if t <= 0 or not (0 < tol < 1):

@@ -41,8 +41,8 @@ __all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "peak_memory", "def
 
 log = logging.getLogger("o3dheat")
 
-MASS_KINDS = ("consistent", "lumped", "voronoi", "identity")
-METHODS = ("auto", "lanczos", "arpack", "dense")  # eigensolve(method=): defined here only
+#: eigensolver methods of :func:`eigensolve` (``method=``): defined here only
+METHODS = ("auto", "lanczos", "arpack", "dense")
 DENSE_MAX_N = 1200
 DENSE_LIMIT_N = 12_000  # above this a dense solve needs several GiB: never chosen automatically
 # Measured (scripts/bench_spectrum.py, 2 cores): the block Lanczos wins from about 10k vertices,
@@ -70,7 +70,7 @@ class Spectrum:
         ``B`` as chosen by ``mass_kind`` (the identity for "identity"; on welded duplicates
         ``P D⁻¹ B D⁻¹ Pᵀ``).
     mass_kind : str
-        "consistent", "lumped", "voronoi" or "identity" (:func:`eigensolve_operators`: "given").
+        A key of :data:`o3dheat.fem.MASS_KINDS` (:func:`eigensolve_operators`: "given").
     areas : (n,) float64 ndarray
         Mixed Voronoi areas of the vertices (for the Voronoi kernel of eq. (7)); the copies of a
         welded vertex share its area equally (the row sums of the "voronoi" mass).
@@ -85,6 +85,16 @@ class Spectrum:
     faces : (m, 3) int64 ndarray or None
         The faces the operators were built on (after the repairs of :func:`o3dheat.mesh.prepare`),
         in the caller's vertex numbering: what the topology of smoothed fields is computed on.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> s = o3dheat.eigensolve(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8), k=5)
+    >>> s.mass_kind, s.eigenvectors.shape
+    ('consistent', (114, 5))
+    >>> X, B = s.eigenvectors, s.mass
+    >>> bool(np.allclose(X.T @ (B @ X), np.eye(5)))      # B-orthonormal
+    True
     """
 
     eigenvalues: np.ndarray
@@ -101,12 +111,26 @@ class Spectrum:
 
     @property
     def n(self):
-        """Number of vertices."""
+        """Number of vertices.
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> o3dheat.eigensolve(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8), k=5).n
+        114
+        """
         return self.eigenvectors.shape[0]
 
     @property
     def k(self):
-        """Number of eigenpairs."""
+        """Number of eigenpairs.
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> o3dheat.eigensolve(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8), k=5).k
+        5
+        """
         return len(self.eigenvalues)
 
     def __repr__(self):
@@ -142,7 +166,19 @@ def default_cache_dir():
 
 def cache_max_bytes():
     """Size budget of the on-disk cache: ``$O3DHEAT_CACHE_MAX_MB`` megabytes, default 2048. The least
-    recently used spectra are deleted beyond it."""
+    recently used spectra are deleted beyond it.
+
+    Returns
+    -------
+    int
+        Bytes.
+
+    Examples
+    --------
+    >>> import os, o3dheat.spectrum as s
+    >>> "O3DHEAT_CACHE_MAX_MB" in os.environ or s.cache_max_bytes() == 2048 * 2**20
+    True
+    """
     try:
         return int(float(os.environ.get("O3DHEAT_CACHE_MAX_MB", "2048")) * 2**20)
     except ValueError:
@@ -158,7 +194,19 @@ _DISK = None
 def memory_cache_max_bytes():
     """Size budget of the in-memory cache: ``$O3DHEAT_MEMORY_CACHE_MB`` megabytes, default 1024.
     Beyond it (or beyond 8 spectra) the least recently used spectra are dropped; the newest one is
-    always kept, whatever its size (the filters of a chain share it)."""
+    always kept, whatever its size (the filters of a chain share it).
+
+    Returns
+    -------
+    int
+        Bytes.
+
+    Examples
+    --------
+    >>> import os, o3dheat.spectrum as s
+    >>> "O3DHEAT_MEMORY_CACHE_MB" in os.environ or s.memory_cache_max_bytes() == 1024 * 2**20
+    True
+    """
     try:
         return int(float(os.environ.get("O3DHEAT_MEMORY_CACHE_MB", "1024")) * 2**20)
     except ValueError:
@@ -204,7 +252,28 @@ def clear_cache():
 def memoized(key, compute):
     """``compute()``, remembered under ``key`` among the last results (least recently used first
     out: at most 8 and :func:`memory_cache_max_bytes`, the newest always kept): the one in-memory
-    cache of spectra, for meshes and for operators built elsewhere."""
+    cache of spectra, for meshes and for operators built elsewhere.
+
+    Parameters
+    ----------
+    key : hashable
+        What identifies the result (e.g. a hash of the geometry and the settings).
+    compute : callable
+        Called without arguments when ``key`` is not remembered.
+
+    Returns
+    -------
+    The result of ``compute()``, now or from an earlier call.
+
+    Examples
+    --------
+    >>> import o3dheat.spectrum as s
+    >>> calls = []
+    >>> s.memoized(("example", 1), lambda: calls.append(1) or 42), s.memoized(("example", 1), lambda: 0)
+    (42, 42)
+    >>> len(calls)
+    1
+    """
     if key in _MEMORY:
         _MEMORY.move_to_end(key)
         return _MEMORY[key][0]
@@ -227,6 +296,7 @@ def shared_eigensolve(V, F, k=100, mass="consistent", cache=None):
     k : int
         Eigenpairs (capped at the number of vertices).
     mass : str
+        A key of :data:`o3dheat.fem.MASS_KINDS`.
     cache : None, bool, str or Path
         Disk folder (True: :func:`default_cache_dir`); None: what :func:`set_cache` set.
 
@@ -405,10 +475,11 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     k : int
         Number of eigenpairs, ``1 <= k <= n`` (``n`` referenced vertices, after welding); ``k = n``
         is the full spectrum (dense solver).
-    mass : {"consistent", "lumped", "voronoi", "identity"}
-        ``B``: the paper's consistent FEM mass, its lumped diagonal (row sums), the diagonal of
-        mixed Voronoi areas (eq. (7)), or ``I`` (the paper's "B := I" linear FEM kernel). Each is
-        the mass of one heat-kernel variant (:data:`o3dheat.kernel.VARIANTS`).
+    mass : str
+        ``B``, a key of :data:`o3dheat.fem.MASS_KINDS`: the paper's consistent FEM mass, its
+        lumped diagonal (row sums), the diagonal of mixed Voronoi areas (eq. (7)), or ``I`` (the
+        paper's "B := I" linear FEM kernel). The kernel variants (:data:`o3dheat.kernel.VARIANTS`)
+        each name the mass of their eigenproblem.
     sigma : float, optional
         Shift, must be negative (``L - σ B`` is then positive definite). Default: a hundredth of
         the expected first gap (Weyl's law), below 0.
@@ -417,10 +488,10 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     cache : None, True, str or Path
         On-disk cache folder (True: :func:`default_cache_dir`), keyed by a hash of ``V``, ``F``,
         ``k``, ``mass`` and ``method``: a repeated call returns at once.
-    method : {"auto", "lanczos", "arpack", "dense"}
-        "lanczos": block shift-invert Lanczos (:func:`o3dheat.lanczos.block_lanczos`, the fast
-        default); "arpack": SciPy's ``eigsh`` in shift-invert mode on the same factor; "dense":
-        LAPACK on dense matrices. "auto" is dense for ``n <= 1200`` or ``k > n / 2``, "lanczos"
+    method : str
+        One of :data:`METHODS`. "lanczos": block shift-invert Lanczos
+        (:func:`o3dheat.lanczos.block_lanczos`, the fast default); "arpack": SciPy's ``eigsh`` in
+        shift-invert mode on the same factor; "dense": LAPACK on dense matrices. "auto" is dense for ``n <= 1200`` or ``k > n / 2``, "lanczos"
         from 10k vertices (and from 3k when ``k >= 64``), "arpack" otherwise (where each is
         measured faster).
     tol : float
@@ -452,10 +523,8 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     >>> s.eigenvalues.round(1).tolist()
     [0.0, 2.0, 2.0, 2.0]
     """
-    if mass not in MASS_KINDS:
-        raise MeshError(f"unknown mass {mass!r}: use one of {MASS_KINDS}")
-    if method not in METHODS:
-        raise MeshError(f"unknown method {method!r}: use one of {METHODS}")
+    fem.check_mass_kind(mass)
+    _check_method(method)
     k = _check_k(k)
     t0 = time.perf_counter()
     prep = prepare(mesh)
@@ -633,8 +702,7 @@ def eigensolve_operators(L, B, k=100, sigma=None, backend="auto", method="auto",
     >>> eigensolve_operators(L, sp.identity(10), k=2).eigenvalues.round(4).tolist()
     [0.0, 0.0979]
     """
-    if method not in METHODS:
-        raise MeshError(f"unknown method {method!r}: use one of {METHODS}")
+    _check_method(method)
     L, B = sp.csc_matrix(L, dtype=np.float64), sp.csc_matrix(B, dtype=np.float64)
     n = L.shape[0]
     if L.shape != (n, n) or B.shape != (n, n):
@@ -647,6 +715,11 @@ def eigensolve_operators(L, B, k=100, sigma=None, backend="auto", method="auto",
     lam, X, used, s, res, timings = _solve(L, B, k, method, sigma, backend, seed, tol, block)
     areas = np.asarray(B.sum(axis=1)).ravel()
     return Spectrum(lam, X, L, B, "given", areas, used, res, s, timings)
+
+
+def _check_method(method):
+    if not isinstance(method, str) or method not in METHODS:
+        raise MeshError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
 
 
 def _check_k(k):

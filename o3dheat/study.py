@@ -7,14 +7,14 @@ vertices (:func:`o3dheat.sampling.transfer`) and measures how far they moved:
 * ``rel_l2 = ‖d − d_ref‖_A / ‖d_ref‖_A``, with the lumped-mass (area) norm of the reference;
 * ``rel_linf = ‖d − d_ref‖∞ / ‖d_ref‖∞``.
 
-Kernels (the ``kernel`` column, :data:`o3dheat.kernel.VARIANTS`), each the heat kernel of its
-own eigenproblem ``L x = λ W x``, ``K_t = X D_t Xᵀ W``: "weighted" (the paper's, ``W = B`` the
-consistent mass), "linear" (the paper's ``B := I``: ``L x = λ x``), "voronoi" (eq. (7):
-``W`` = mixed Voronoi areas), "lumped" (``W`` = lumped mass, common practice). Descriptors:
-"hks_density", "hks_paper" (the two HKS forms), "smooth_height" (``Φ_t`` of the height along the
-reference's longest axis), "smooth_curvature" (``Φ_t`` of the FEM mean curvature), "eigenvalues"
-(λ_2..λ_k of the kernel's own eigenproblem, one row with scale 0) and "critical_points" (the
-number of critical points of the smoothed height; both metrics are ``|c − c_ref| / c_ref``).
+Kernels (the ``kernel`` column): the variants of :data:`o3dheat.kernel.VARIANTS` (all of them by
+default), each the heat kernel of its own eigenproblem ``L x = λ W x``, ``K_t = X D_t Xᵀ W``.
+Descriptors (:data:`DESCRIPTORS`): "hks_<form>" for each HKS form of
+:data:`o3dheat.kernel.HKS_FORMS` ("hks_density", "hks_paper"), "smooth_height" (``Φ_t`` of the
+height along the reference's longest axis), "smooth_curvature" (``Φ_t`` of the FEM mean
+curvature), "eigenvalues" (λ_2..λ_k of the kernel's own eigenproblem, one row with scale 0) and
+"critical_points" (the number of critical points of the smoothed height; both metrics are
+``|c − c_ref| / c_ref``).
 
 Times: each kernel's scales are computed once, from its own spectrum on the reference sampling
 (the paper's grid ``t_i = (i/10)/λ_k`` by default, or the log grid), and applied unchanged to
@@ -43,16 +43,16 @@ from pathlib import Path
 import numpy as np
 
 from .cluster import progress_bar, session
+from . import kernel
 from .errors import MeshError
-from .kernel import VARIANTS
 
-__all__ = ["robustness_study", "KERNELS", "DESCRIPTORS", "COLUMNS", "load_config"]
+__all__ = ["robustness_study", "DESCRIPTORS", "COLUMNS", "load_config"]
 
 log = logging.getLogger("o3dheat")
 
-KERNELS = tuple(VARIANTS)
-DESCRIPTORS = ("hks_density", "hks_paper", "smooth_height", "smooth_curvature", "eigenvalues",
-               "critical_points")
+#: what a study measures: one HKS per form of :data:`o3dheat.kernel.HKS_FORMS`, then the others
+DESCRIPTORS = tuple(f"hks_{form}" for form in kernel.HKS_FORMS) + (
+    "smooth_height", "smooth_curvature", "eigenvalues", "critical_points")
 COLUMNS = ["mesh", "resampling", "kind", "kernel", "descriptor", "scale", "t", "rel_l2", "rel_linf",
            "vertices", "error"]
 
@@ -78,10 +78,8 @@ def _descriptors(V, F, kernels, descriptors, k, times, axis, grid="paper", scale
         K = heat_kernel((V, F), k=k, variant=kern)
         t = used[kern] = K.scales(scales, grid=grid) if times is None else times[kern]
         for d in descriptors:
-            if d == "hks_density":
-                out[kern, d] = K.hks(t, form="density")
-            elif d == "hks_paper":
-                out[kern, d] = K.hks(t, form="paper")
+            if d.startswith("hks_"):
+                out[kern, d] = K.hks(t, form=d[len("hks_"):])
             elif d == "smooth_height":
                 out[kern, d] = K.smooth(height, t)
             elif d == "smooth_curvature":
@@ -273,7 +271,7 @@ def _cost(spec, n):
         return float(n)
 
 
-def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTORS, scales=10, k=100,
+def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS, scales=10, k=100,
                      out=None, scheduler=None, progress=None, grid="paper"):
     """Run a robustness study (see the module docstring for what is measured).
 
@@ -287,8 +285,8 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
         the defaults of each function of :mod:`o3dheat.sampling`, e.g. ``decimate(reduction=0.7)``,
         ``remesh(edge_factor=1)``); kinds of :data:`o3dheat.sampling.KINDS`. Names must stay
         distinct once made file names.
-    kernels : sequence of str
-        From :data:`KERNELS`.
+    kernels : str or sequence of str, optional
+        Keys of :data:`o3dheat.kernel.VARIANTS`; default: all of them.
     descriptors : sequence of str
         From :data:`DESCRIPTORS`.
     scales : int
@@ -304,8 +302,9 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
         and left open (:mod:`o3dheat.cluster`).
     progress : bool, optional
         A progress bar (default: when stderr is a terminal).
-    grid : {"paper", "log"}
-        The scale grid of :meth:`o3dheat.HeatKernel.scales`, on each kernel's reference spectrum.
+    grid : str
+        The scale grid, one of :data:`o3dheat.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales`), on
+        each kernel's reference spectrum.
 
     Returns
     -------
@@ -326,11 +325,14 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
 
     from .mesh import prepare
 
+    if kernels is None:
+        kernels = list(kernel.VARIANTS)  # read now: a variant defined there is studied too
     kernels = [kernels] if isinstance(kernels, str) else list(kernels)  # one name is a list of one
     descriptors = [descriptors] if isinstance(descriptors, str) else list(descriptors)
-    bad = [x for x in kernels if x not in KERNELS] + [x for x in descriptors if x not in DESCRIPTORS]
+    bad = [x for x in kernels if x not in kernel.VARIANTS] + [x for x in descriptors if x not in DESCRIPTORS]
     if bad:
-        raise MeshError(f"unknown kernels/descriptors {bad}: kernels are {KERNELS}, descriptors {DESCRIPTORS}")
+        raise MeshError(f"unknown kernels/descriptors {bad}: kernels are {', '.join(kernel.VARIANTS)} "
+                        f"(o3dheat.kernel.VARIANTS), descriptors {', '.join(DESCRIPTORS)}")
     if not kernels or not descriptors:
         raise MeshError("give at least one kernel and one descriptor")
     if not isinstance(meshes, dict) or not meshes:
@@ -339,10 +341,8 @@ def robustness_study(meshes, resamplings, kernels=KERNELS, descriptors=DESCRIPTO
     items = _normalise_resamplings(resamplings)
     if not (isinstance(scales, (int, np.integer)) and scales >= 1 and isinstance(k, (int, np.integer)) and k >= 2):
         raise MeshError("scales must be >= 1 and k >= 2 (integers)")
-    from .kernel import GRIDS
-
-    if grid not in GRIDS:
-        raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(GRIDS)}")
+    if not isinstance(grid, str) or grid not in kernel.GRIDS:
+        raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(kernel.GRIDS)}")
     cfg = {"kernels": kernels, "descriptors": descriptors, "scales": int(scales), "k": int(k), "grid": grid}
     arrays = {}
     for name, mesh in meshes.items():
@@ -450,9 +450,9 @@ def load_config(path):
 
         k = 100
         scales = 10
-        grid = "paper"                   # or "log"
-        kernels = ["weighted", "linear", "voronoi", "lumped"]
-        descriptors = ["hks_density", "smooth_height"]
+        grid = "paper"                   # one of o3dheat.kernel.GRIDS
+        kernels = ["weighted"]                           # of o3dheat.kernel.VARIANTS (default: all)
+        descriptors = ["hks_density", "smooth_height"]   # of DESCRIPTORS (default: all)
         [meshes]
         bunny = "builtin:bunny@20000"    # bunny, airplane, bone, torus (@ decimates); or a file path
         [[resampling]]
@@ -464,6 +464,18 @@ def load_config(path):
     -------
     dict
         Keyword arguments of :func:`robustness_study` (meshes loaded).
+
+    Examples
+    --------
+    >>> import os, tempfile, open3d as o3d, o3dheat
+    >>> from o3dheat.study import load_config
+    >>> d = tempfile.mkdtemp()
+    >>> o3dheat.io.write_mesh(os.path.join(d, "s.ply"), o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+    >>> with open(os.path.join(d, "study.toml"), "w") as fh:
+    ...     _ = fh.write('kernels = ["weighted"]\\n[meshes]\\nsphere = "s.ply"\\n[[resampling]]\\nkind = "jitter"\\n')
+    >>> kw = load_config(os.path.join(d, "study.toml"))
+    >>> sorted(kw), kw["kernels"], kw["resamplings"]
+    (['kernels', 'meshes', 'resamplings'], ['weighted'], [{'kind': 'jitter'}])
     """
     from .io import read_mesh, read_toml
 

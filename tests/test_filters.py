@@ -395,3 +395,40 @@ def test_bad_attributes_and_outputs(sphere, tmp_path):
         o3dheat.io.write_mesh(tmp_path / "no" / "such" / "dir.ply", sphere)
     with pytest.raises(o3dheat.MeshError, match="TriangleMesh or PointCloud"):
         flt.apply("mesh.ply", "hks")
+
+
+def _filter_modules():
+    import pkgutil
+
+    import o3dheat_filters
+
+    return sorted(f"o3dheat_filters.{m.name}" for m in pkgutil.iter_modules(o3dheat_filters.__path__))
+
+
+@pytest.mark.parametrize("module", _filter_modules())
+def test_filter_examples_run(module):
+    """The built-in filters' Examples (filters/ is not under pytest's doctest paths)."""
+    import doctest
+    import importlib
+
+    mod = importlib.import_module(module)
+    result = doctest.testmod(mod, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE, report=True)
+    assert result.failed == 0 and (result.attempted > 0 or module == "o3dheat_filters.__init__")
+
+
+def test_one_of_reads_its_choices_when_checking():
+    import typing
+
+    choices = ["a", "b"]
+    Choice = typing.Annotated[str, flt.OneOf(lambda: choices)]
+    assert flt._check(Choice, "b", "pick.which") == "b"
+    with pytest.raises(o3dheat.MeshError, match="pick.which must be one of 'a', 'b', got 'c'"):
+        flt._check(Choice, "c", "pick.which")
+    choices.append("c")  # defined later: accepted, and described
+    assert flt._check(Choice, "c", "pick.which") == "c"
+    assert flt._type_text(Choice) == "Literal['a', 'b', 'c']"
+    assert flt.parse_value("c", Choice) == "c"
+    with pytest.raises(o3dheat.MeshError, match="must be text"):
+        flt._check(Choice, 3, "pick.which")
+    with pytest.raises(TypeError, match="callable"):
+        flt.OneOf(("a", "b"))

@@ -6,7 +6,9 @@ import pytest
 from conftest import icosphere, torus
 
 import o3dheat
-from o3dheat.study import COLUMNS, DESCRIPTORS, KERNELS, robustness_study
+from o3dheat.study import COLUMNS, DESCRIPTORS, robustness_study
+
+KERNELS = tuple(o3dheat.VARIANTS)  # the default of robustness_study: every variant
 
 MESHES = {"sphere": icosphere(2), "torus": torus(1.0, 0.4, 24, 12)}
 RES = {"dec": {"kind": "decimate", "reduction": 0.5}, "jit": {"kind": "jitter", "amount": 0.3},

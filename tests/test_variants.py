@@ -1,0 +1,149 @@
+"""Kernel variants, mass kinds and the other lists are defined once (issue 15): every consumer
+(filters, command, study) reads them from their module, so a new variant is one edit."""
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+import o3dheat
+import o3dheat.filters as flt
+from o3dheat import fem, kernel
+from o3dheat.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    return o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)  # 182 vertices
+
+
+@pytest.fixture
+def twin(monkeypatch):
+    """A variant registered in o3dheat.kernel.VARIANTS only: a copy of "weighted" under a new name."""
+    monkeypatch.setitem(kernel.VARIANTS, "twin", ("consistent", "the weighted kernel again, for a test"))
+    return "twin"
+
+
+@pytest.mark.parametrize("variant", list(kernel.VARIANTS))
+def test_hks_filter_reaches_every_variant(sphere, variant):
+    out = flt.apply(sphere, "hks", variant=variant, k=20, scales=3)
+    K = o3dheat.heat_kernel(sphere, k=20, variant=variant)
+    assert K.spectrum.mass_kind == kernel.VARIANTS[variant][0]
+    np.testing.assert_allclose(out.vertex["hks"].numpy(), K.hks(K.scales(3)), rtol=1e-10, atol=1e-14)
+
+
+def test_every_variant_names_a_mass_kind():
+    assert {mass for mass, _ in kernel.VARIANTS.values()} <= set(fem.MASS_KINDS)
+    for variant in kernel.VARIANTS:
+        assert kernel.variant_of_mass(kernel.mass_of(variant)) == variant  # the first of its mass
+
+
+def test_a_new_variant_reaches_the_kernel_and_the_filters(sphere, twin):
+    K = o3dheat.heat_kernel(sphere, k=20, variant=twin)
+    W = o3dheat.heat_kernel(sphere, k=20, variant="weighted")
+    assert K.variant == twin and K.spectrum.mass_kind == "consistent"
+    assert o3dheat.HeatKernel(W.spectrum, variant=twin).variant == twin  # a spectrum of its mass
+    # the filters take it (checked when configured) and compute with it
+    h = flt.apply(sphere, "hks", variant=twin, k=20, scales=3).vertex["hks"].numpy()
+    np.testing.assert_allclose(h, W.hks(W.scales(3)), rtol=1e-10)
+    m = flt.apply(sphere, "scalar", kind="height")
+    g = flt.apply(m, "heat_smooth", attribute="height", variant=twin, k=20, scales=2)
+    np.testing.assert_allclose(g.vertex["height_smooth"].numpy(),
+                               W.smooth(m.vertex["height"].numpy(), W.scales(2)), rtol=1e-10, atol=1e-12)
+    assert flt.get("feature_approx", variant=twin).variant == twin
+    for name in ("hks", "heat_smooth", "feature_approx"):
+        (p,) = [p for p in flt.describe(name)["parameters"] if p.name == "variant"]
+        assert "'twin'" in p.type
+        with pytest.raises(o3dheat.MeshError, match="twin"):  # the refusal lists it too
+            flt.get(name, variant="triplet")
+
+
+def test_a_new_variant_reaches_the_study(twin):
+    from conftest import icosphere
+
+    small = dict(descriptors=["smooth_height"], scheduler="sequential", progress=False, k=8, scales=2)
+    t = o3dheat.robustness_study({"s": icosphere(1)}, ["jitter"], **small)  # default: every variant
+    assert set(t["kernel"]) == set(kernel.VARIANTS) and (t["error"] == "").all()
+    rows = t.set_index(["kernel", "scale"])["rel_l2"]
+    np.testing.assert_allclose(rows["twin"], rows["weighted"], rtol=1e-12)
+    with pytest.raises(o3dheat.MeshError, match="twin"):
+        o3dheat.robustness_study({"s": icosphere(1)}, ["jitter"], kernels=["triplet"], **small)
+
+
+def test_a_new_variant_reaches_the_command(tmp_path, capsys, twin):
+    from conftest import icosphere
+
+    V, F = icosphere(1)
+    mesh = o3d.t.geometry.TriangleMesh()
+    mesh.vertex.positions = o3d.core.Tensor(V)
+    mesh.triangle.indices = o3d.core.Tensor(F)
+    o3dheat.io.write_mesh(tmp_path / "s.ply", mesh)
+    # a filter parameter on the command line
+    out = tmp_path / "out.ply"
+    assert main(["apply", str(tmp_path / "s.ply"), str(out), "-f", f"hks:variant={twin},k=8,scales=2"]) == 0
+    assert o3dheat.io.read_mesh(out).vertex["hks"].shape == (len(V), 2)
+    assert main(["filters", "hks"]) == 0 and "'twin'" in capsys.readouterr().out
+    # a study's kernel
+    cfg = tmp_path / "study.toml"
+    cfg.write_text(f'k = 8\nscales = 2\nkernels = ["{twin}"]\ndescriptors = ["smooth_height"]\n'
+                   '[meshes]\ns = "s.ply"\n[[resampling]]\nkind = "jitter"\n')
+    assert main(["study", str(cfg), "--out", str(tmp_path / "study"), "--scheduler", "sequential"]) == 0
+    assert "twin" in capsys.readouterr().out
+    # the help lists it
+    with pytest.raises(SystemExit):
+        main(["study", "--help"])
+    assert json.dumps(list(kernel.VARIANTS)) in capsys.readouterr().out
+
+
+def test_mass_kinds_are_fems(sphere, capsys):
+    V, F = o3dheat.as_arrays(sphere)
+    for mass in fem.MASS_KINDS:
+        B = fem.mass_matrix(V, F, mass)
+        assert abs(B - fem.operators(V, F, mass)[1]).max() < 1e-15
+        assert o3dheat.eigensolve(sphere, k=3, mass=mass).mass_kind == mass
+        assert np.all(np.isfinite(o3dheat.diffuse(sphere, V[:, 2], dt=1e-3, steps=2, scheme="implicit", mass=mass)))
+    with pytest.raises(SystemExit):
+        main(["spectrum", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "{" + ",".join(fem.MASS_KINDS) + "}" in help_text
+    for mass in ("area", None):
+        for call in (lambda: fem.mass_matrix(V, F, mass), lambda: o3dheat.eigensolve(sphere, k=3, mass=mass),
+                     lambda: o3dheat.diffuse(sphere, V[:, 2], dt=1e-3, steps=1, mass=mass)):
+            with pytest.raises(o3dheat.MeshError, match=", ".join(fem.MASS_KINDS)):
+                call()
+
+
+def test_other_lists_have_one_home():
+    from o3dheat.study import DESCRIPTORS
+
+    assert [d for d in DESCRIPTORS if d.startswith("hks_")] == [f"hks_{f}" for f in kernel.HKS_FORMS]
+    types = {p.name: p.type for p in flt.describe("hks")["parameters"]}
+    assert types["grid"] == f"Literal{list(kernel.GRIDS)}"
+    assert types["form"] == f"Literal{list(kernel.HKS_FORMS)}"
+    assert types["normalize"] == f"Literal{list(kernel.NORMALIZATIONS)}"
+    K = o3dheat.heat_kernel(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6), k=5)
+    for bad, message in ((lambda: K.scales(3, grid="linear"), ", ".join(kernel.GRIDS)),
+                         (lambda: K.hks(1.0, form="diagonal"), ", ".join(kernel.HKS_FORMS)),
+                         (lambda: o3dheat.HeatKernel(K.spectrum, normalize="max"), "'lambda2'")):
+        with pytest.raises(o3dheat.MeshError, match=message):
+            bad()
+
+
+# the modules that consume the lists must not spell them out again (docs point to the definition)
+CONSUMERS = ["o3dheat/cli.py", "o3dheat/study.py", "o3dheat/filters.py", "o3dheat/diffusion.py",
+             "o3dheat/spectrum.py", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "filters").glob("*.py"))]
+
+
+@pytest.mark.parametrize("path", CONSUMERS)
+def test_consumers_do_not_repeat_the_lists(path):
+    text = (ROOT / path).read_text()
+    for names in (list(kernel.VARIANTS), list(fem.MASS_KINDS), list(kernel.GRIDS), list(kernel.HKS_FORMS)):
+        # two or more names of one list, quoted, side by side: a copy of the list
+        pairs = [rf'"{a}",\s*"{b}"' for a in names for b in names if a != b]
+        found = [m.group(0) for p in pairs for m in re.finditer(p, text)]
+        assert not found, f"{path} repeats {names}: {found}"
