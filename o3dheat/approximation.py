@@ -117,6 +117,18 @@ class ScaleSpace:
         ``stop`` is None.
     stopped : bool
         Whether the criterion held.
+
+    Examples
+    --------
+    >>> import open3d as o3d, o3dheat
+    >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)
+    >>> K = o3dheat.HeatKernel(o3dheat.eigensolve(mesh, k=20))
+    >>> z = mesh.vertex.positions.numpy()[:, 2]
+    >>> ss = o3dheat.scale_space(K, z, K.scales(5, grid="log"), stop="critical_points")
+    >>> ss.fields.shape, ss.errors.round(2).tolist()        # ε∞ grows with the scale
+    ((182, 5), [0.04, 0.12, 0.35, 0.76, 0.99])
+    >>> ss.critical_counts[0].tolist(), ss.stop_index, ss.stopped, ss.field.shape
+    ([1, 0, 1], 1, True, (182,))
     """
 
     scales: np.ndarray

@@ -52,8 +52,11 @@ __all__ = ["run", "expand", "outputs", "summary", "named_error", "COLUMNS", "STA
 
 log = logging.getLogger("o3dheat")
 
+#: the columns of the table :func:`run` returns, one row per input file
 COLUMNS = ["input", "output", "status", "seconds", "error"]
+#: the values of its ``status`` column
 STATUSES = ("done", "skipped", "failed")
+#: the file in the output folder that records the chain (a chain file), for resuming
 MANIFEST = "o3dheat-batch.toml"
 SUFFIXES = (".ply", ".npz")
 

@@ -97,6 +97,17 @@ def connect(scheduler, warm_up=False):
     ------
     MeshError
         Any other ``scheduler``.
+
+    Examples
+    --------
+    >>> from distributed import Client
+    >>> from o3dheat.cluster import connect
+    >>> connect("sequential")                     # no client: the caller computes in-process
+    (None, False)
+    >>> with Client(processes=False, n_workers=1, dashboard_address=None) as c:
+    ...     client, owned = connect(c)            # the caller's client: the caller closes it
+    ...     client is c, owned
+    (True, False)
     """
     if scheduler == "sequential":
         if warm_up:
@@ -164,7 +175,19 @@ def session(scheduler, warm_up=False):
 
 def register_warm_up(client):
     """pymeshlab's first call in each worker's main thread, now and in workers that join later
-    (see :func:`o3dheat.sampling.warm_up`)."""
+    (see :func:`o3dheat.sampling.warm_up`).
+
+    Examples
+    --------
+    For clusters of worker processes (``connect(..., warm_up=True)`` calls it):
+
+    >>> from distributed import Client
+    >>> from o3dheat.cluster import local_cluster, register_warm_up
+    >>> with local_cluster(1) as cluster, Client(cluster) as client:   # doctest: +SKIP
+    ...     register_warm_up(client)
+    ...     "o3dheat-pymeshlab-warm-up" in client.run(lambda dask_worker: list(dask_worker.plugins)).popitem()[1]
+    True
+    """
     from distributed.diagnostics.plugin import WorkerPlugin
 
     class WarmUp(WorkerPlugin):

@@ -1,14 +1,17 @@
 """The o3dheat exception family.
 
-Every error raised on purpose by o3dheat is one of these two, with a message that says what was
-wrong and what to do about it.
+Every error raised on purpose by o3dheat is a :class:`MeshError` (a ``ValueError``) or a
+:class:`SolverError` (a ``RuntimeError``; :class:`ConvergenceError` and
+:class:`o3dheat.linalg.OutOfMemory` are kinds of it), with a message that says what was wrong and
+what to do about it.
 """
 
 __all__ = ["MeshError", "SolverError", "ConvergenceError"]
 
 
 class MeshError(ValueError):
-    """Bad input: a mesh, a field, a time or a parameter that o3dheat cannot work with.
+    """Bad input: a mesh, a field, a time or a parameter that o3dheat cannot work with. A
+    ``ValueError``.
 
     Examples
     --------
@@ -22,7 +25,7 @@ class MeshError(ValueError):
 
 
 class SolverError(RuntimeError):
-    """A numerical solver failed (factorization, eigensolver, time stepping).
+    """A numerical solver failed (factorization, eigensolver, time stepping). A ``RuntimeError``.
 
     Examples
     --------

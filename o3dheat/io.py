@@ -16,7 +16,7 @@ property is ``uchar``, ``int``, ``float`` or ``double``: the types that Open3D's
 ``char``, ``short``, ``ushort`` and ``uint``, meshio's binary reader fails on ``char``, ``short``
 and ``ushort``). Other dtypes are stored exactly in one of them and restored from DTYPE: bool as
 uchar; int8, int16 and uint16 as int; uint32, int64 and uint64 as int when they fit, else as
-double when every |value| <= 2**53 (beyond: refused, use ``.npz``). Names PLY
+double when every ``|value| <= 2**53`` (beyond: refused, use ``.npz``). Names PLY
 cannot hold (spaces, non-ASCII), reserved ones (``x y z nx ny nz red green blue``, ``alpha`` but
 for one column, ``o3dheat_colors*``) and names whose properties collide (``a_0`` beside a
 multi-column ``a``) are refused with a :class:`MeshError` before anything is written, as are
@@ -294,6 +294,23 @@ def atomic_write(path, write):
     ------
     MeshError
         The folder does not exist or is not writable.
+
+    Examples
+    --------
+    >>> import os, tempfile, o3dheat.io as io
+    >>> p = os.path.join(tempfile.mkdtemp(), "data.bin")
+    >>> io.atomic_write(p, lambda out: out.write(bytes([1, 2, 3])))
+    >>> open(p, "rb").read()
+    b'\\x01\\x02\\x03'
+    >>> def fails(out):
+    ...     out.write(b"half")
+    ...     raise RuntimeError("interrupted")
+    >>> try:
+    ...     io.atomic_write(p, fails)
+    ... except RuntimeError:
+    ...     pass
+    >>> open(p, "rb").read(), os.listdir(os.path.dirname(p))    # untouched, no temporary file left
+    (b'\\x01\\x02\\x03', ['data.bin'])
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
@@ -331,7 +348,16 @@ def _remove_stale(folder, prefix, age=3600.0):
 
 
 def atomic_write_text(path, text):
-    """Write a text file (UTF-8) atomically (see :func:`atomic_write`)."""
+    """Write a text file (UTF-8) atomically (see :func:`atomic_write`).
+
+    Examples
+    --------
+    >>> import os, tempfile, o3dheat.io as io
+    >>> p = os.path.join(tempfile.mkdtemp(), "note.txt")
+    >>> io.atomic_write_text(p, "λ₂ = 2\\n")
+    >>> open(p, encoding="utf-8").read()
+    'λ₂ = 2\\n'
+    """
     atomic_write(path, lambda fh: fh.write(text.encode("utf-8")))
 
 
@@ -407,6 +433,16 @@ def read_geometry(path):
     ------
     MeshError
         Missing, unreadable or truncated file.
+
+    Examples
+    --------
+    >>> import os, tempfile, numpy as np, open3d as o3d, o3dheat.io as io
+    >>> pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.random.default_rng(0).random((50, 3))))
+    >>> pc.point["f"] = o3d.core.Tensor(np.arange(50, dtype=np.int32))
+    >>> p = os.path.join(tempfile.mkdtemp(), "points.ply"); io.write_geometry(p, pc)
+    >>> g = io.read_geometry(p)                     # no faces: a point cloud
+    >>> type(g).__name__, str(g.point["f"].numpy().dtype), g.point["f"].numpy()[-1].item()
+    ('PointCloud', 'int32', 49)
     """
     import open3d as o3d
 

@@ -45,6 +45,7 @@ __all__ = ["BACKENDS", "Factor", "available_backends", "factorize", "available_m
 
 log = logging.getLogger("o3dheat")
 
+#: the factorization backends, in the order ``backend="auto"`` tries them
 BACKENDS = ("cholmod", "cholespy", "superlu")
 _WARNED = set()
 ORDERING = "default"  # CHOLMOD tries AMD, then METIS when the fill is high: best or near-best on meshes
@@ -54,7 +55,19 @@ SUPERNODAL_MIN_N = 100_000  # "auto": supernodal from here (measured in scripts/
 
 class OutOfMemory(SolverError):
     """The work does not fit in the memory this process may use (estimated before, or reported by
-    CHOLMOD): no other backend is tried, since it would need as much and may crash the process."""
+    CHOLMOD): no other backend is tried, since it would need as much and may crash the process.
+
+    Examples
+    --------
+    >>> import o3dheat, o3dheat.linalg as la
+    >>> issubclass(la.OutOfMemory, o3dheat.SolverError)
+    True
+    >>> try:
+    ...     la.check_memory(2**70, "this eigensolve", "use a smaller mesh")    # 1 ZiB
+    ... except la.OutOfMemory as e:
+    ...     print(str(e).split(",")[0])
+    this eigensolve needs about 1099511627776.00 GiB
+    """
 
 
 def available_memory():
@@ -133,6 +146,16 @@ class Factor:
     backend : str
         "cholmod", "cholespy" or "superlu".
     shape : tuple
+
+    Examples
+    --------
+    Made by :func:`factorize`:
+
+    >>> import numpy as np, scipy.sparse as sp, o3dheat.linalg as la
+    >>> A = sp.diags([2.0, 3.0, 4.0]).tocsc()
+    >>> f = la.factorize(A, backend="superlu")
+    >>> f.backend, f.shape
+    ('superlu', (3, 3))
     """
 
     def __init__(self, backend, solve, shape):
@@ -153,6 +176,16 @@ class Factor:
         Returns
         -------
         x : ndarray of the same shape as ``b`` (``out`` when given)
+
+        Examples
+        --------
+        >>> import numpy as np, scipy.sparse as sp, o3dheat.linalg as la
+        >>> f = la.factorize(sp.diags([2.0, 4.0, 8.0]).tocsc())
+        >>> f.solve([2.0, 4.0, 8.0]).round(12).tolist()
+        [1.0, 1.0, 1.0]
+        >>> out = np.empty((3, 2))                       # several right-hand sides, into out
+        >>> f.solve(np.ones((3, 2)), out=out) is out, out[:, 0].round(12).tolist()
+        (True, [0.5, 0.25, 0.125])
         """
         b = np.asarray(b, dtype=np.float64)
         if b.shape[0] != self.shape[0]:

@@ -320,6 +320,13 @@ class MeshReport:
     see :func:`prepare`), the face, edge, boundary, component, Euler characteristic, genus and
     non-manifold counts are those of the welded mesh, the one every computation uses; the vertex
     counts are those of the input.
+
+    Examples
+    --------
+    >>> import open3d as o3d, o3dheat
+    >>> report = o3dheat.check_mesh(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10))
+    >>> report.ok, report.euler_characteristic, report.genus, report.boundary_loops
+    (True, 2, 0.0, 0)
     """
 
     n_vertices: int
@@ -536,6 +543,18 @@ class Prepared:
     diagonal of the multiplicities ``Pᵀ 1`` (:attr:`multiplicity`): :meth:`expand` is ``P X``,
     :meth:`restrict` is ``D⁻¹ Pᵀ f`` (the mean over the copies) and :meth:`expand_operator` is
     ``P D⁻¹ A D⁻¹ Pᵀ`` (see the module docstring for why).
+
+    Examples
+    --------
+    Two triangles that share an edge through copies of its vertices (as in STL files):
+
+    >>> import numpy as np, o3dheat.mesh as m
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]])
+    >>> p = m.prepare((V, np.array([[0, 1, 2], [3, 4, 5]])))      # 3 and 5 copy 1 and 2
+    >>> p.V.shape, p.F.tolist(), p.n_input
+    ((4, 3), [[0, 1, 2], [1, 3, 2]], 6)
+    >>> p.vertex_map.tolist(), p.multiplicity.tolist()
+    ([0, 1, 2, 1, 3, 2], [1, 2, 2, 1])
     """
 
     V: np.ndarray
@@ -562,7 +581,16 @@ class Prepared:
         return np.bincount(w[w >= 0], minlength=len(self.keep))
 
     def selection(self):
-        """``P``, the ``(n_input, r)`` 0/1 sparse matrix with ``P[i, vertex_map[i]] = 1``."""
+        """``P``, the ``(n_input, r)`` 0/1 sparse matrix with ``P[i, vertex_map[i]] = 1``.
+
+        Examples
+        --------
+        >>> import numpy as np, o3dheat.mesh as m
+        >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]])
+        >>> p = m.prepare((V, np.array([[0, 1, 2], [3, 4, 5]])))
+        >>> p.selection().toarray().astype(int).tolist()     # input vertex 3 is vertex 1 of V
+        [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 1, 0, 0], [0, 0, 0, 1], [0, 0, 1, 0]]
+        """
         w = self.vertex_map
         rows = np.flatnonzero(w >= 0)
         return sp.csc_matrix((np.ones(len(rows)), (rows, w[rows])), shape=(self.n_input, len(self.keep)))
@@ -619,6 +647,17 @@ class Prepared:
     def expand_operator(self, A):
         """An (r, r) operator on ``V`` as an (n_input, n_input) one: ``P D⁻¹ A D⁻¹ Pᵀ`` (``P A Pᵀ``
         when nothing was welded), in CSC. Its quadratic form on ``P x`` is that of ``A`` on ``x``.
+
+        Examples
+        --------
+        >>> import numpy as np, scipy.sparse as sp, o3dheat.mesh as m
+        >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]])
+        >>> p = m.prepare((V, np.array([[0, 1, 2], [3, 4, 5]])))
+        >>> A = sp.diags([1.0, 2.0, 3.0, 4.0])
+        >>> x = np.array([1.0, -1.0, 2.0, 0.5])
+        >>> Ai = p.expand_operator(A)
+        >>> Ai.shape, bool(np.isclose(p.expand(x) @ Ai @ p.expand(x), x @ A @ x))
+        ((6, 6), True)
         """
         P = self.selection()
         if self.weld is not None:
@@ -720,6 +759,16 @@ class Repaired:
         to orient each component consistently; small components removed (with their faces).
     orientable : bool
         False when some component is non-orientable (a Möbius band): left as it is.
+
+    Examples
+    --------
+    >>> import numpy as np, o3dheat
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]])
+    >>> r = o3dheat.repair((V, np.array([[0, 1, 2], [3, 4, 5], [0, 0, 1]])))
+    >>> print(r)
+    welded 2 duplicate vertices; dropped 1 degenerate/duplicate/zero-area faces
+    >>> r.mesh.vertex.positions.shape, r.source.tolist()
+    (SizeVector[4, 3], [0, 1, 2, 4])
     """
 
     mesh: object

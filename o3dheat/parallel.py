@@ -26,7 +26,8 @@ from .errors import SolverError
 
 __all__ = ["CHUNK", "blas_one_thread", "get_threads", "row_parts", "run", "threads"]
 
-CHUNK = 1 << 14  # rows per part of a row-parallel loop (fixed: sums do not depend on the threads)
+#: rows per part of a row-parallel loop (fixed: sums do not depend on the threads)
+CHUNK = 1 << 14
 _MAX_THREADS = 8
 _LOCAL = threading.local()  # .threads: set by threads() for the calling thread
 _PREFIX = "o3dheat-pool"

@@ -145,12 +145,31 @@ class Surface:
 
     @classmethod
     def of(cls, mesh):
-        """``mesh`` itself when it is a Surface, otherwise ``Surface(mesh)``."""
+        """``mesh`` itself when it is a Surface, otherwise ``Surface(mesh)``.
+
+        Examples
+        --------
+        >>> import open3d as o3d
+        >>> from o3dheat.topology import Surface
+        >>> s = Surface.of(o3d.t.geometry.TriangleMesh.create_torus())
+        >>> Surface.of(s) is s, s.components
+        (True, 1)
+        """
         return mesh if isinstance(mesh, cls) else cls(mesh)
 
     @classmethod
     def from_faces(cls, n, F, V=None):
-        """A Surface from a vertex count and faces (no coordinates needed; no welding)."""
+        """A Surface from a vertex count and faces (no coordinates needed; no welding).
+
+        Examples
+        --------
+        Two triangles sharing an edge, and a vertex no face uses:
+
+        >>> from o3dheat.topology import Surface
+        >>> s = Surface.from_faces(5, [[0, 1, 2], [0, 2, 3]])
+        >>> s.euler_characteristic, s.used.tolist(), int(s.boundary_edge.sum())
+        (1, [True, True, True, True, False], 4)
+        """
         self = cls.__new__(cls)
         self.V = V
         self.representative = None
@@ -213,7 +232,21 @@ class Surface:
         return int(len(np.unique(lab[self.used])))
 
     def field(self, f, name="f"):
-        """``f`` as a checked (n,) float64 array (MeshError on a wrong shape or non-finite values)."""
+        """``f`` as a checked (n,) float64 array (MeshError on a wrong shape or non-finite values).
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> from o3dheat.topology import Surface
+        >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+        >>> s = Surface(m)
+        >>> s.field(m.vertex.positions[:, 0]).dtype           # an Open3D tensor is read too
+        dtype('float64')
+        >>> s.field([1.0, 2.0])
+        Traceback (most recent call last):
+        ...
+        o3dheat.errors.MeshError: f must have shape (600,) or (600, c) (one value per vertex), got (2,)
+        """
         arr = checks.field(f, self.n, name)
         if arr.ndim == 2 and arr.shape[1] == 1:
             arr = arr[:, 0]
@@ -615,6 +648,18 @@ class CriticalPoints:
         Number of vertices of the mesh.
     representative : (n,) int64 ndarray or None
         :attr:`Surface.representative` of the mesh (duplicate vertices welded), else None.
+
+    Examples
+    --------
+    The height across an upright torus: one minimum, two saddles, one maximum.
+
+    >>> import open3d as o3d, o3dheat
+    >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+    >>> cp = o3dheat.critical_points(m, m.vertex.positions.numpy()[:, 0])
+    >>> cp
+    CriticalPoints(minima=1, saddles=2, maxima=1, euler_characteristic=0)
+    >>> cp.counts, cp.euler_characteristic, cp.kind.shape, int((cp.kind == 2).sum())
+    ((1, 2, 1), 0, (600,), 2)
     """
 
     minima: np.ndarray
@@ -645,7 +690,16 @@ class CriticalPoints:
         return out if self.representative is None else out[self.representative]
 
     def same_as(self, other):
-        """True when both have the same minima, saddles (with multiplicities) and maxima."""
+        """True when both have the same minima, saddles (with multiplicities) and maxima.
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+        >>> x = m.vertex.positions.numpy()[:, 0]
+        >>> o3dheat.critical_points(m, x).same_as(o3dheat.critical_points(m, 2 * x + 1))
+        True
+        """
         return (np.array_equal(self.minima, other.minima) and np.array_equal(self.maxima, other.maxima)
                 and np.array_equal(self.saddles, other.saddles)
                 and np.array_equal(self.saddle_multiplicity, other.saddle_multiplicity))
@@ -749,9 +803,25 @@ class PersistenceDiagram:
     essential_dimension : int8 ndarray
         0 for minima, 1 for saddles, 2 for maxima.
 
+    Notes
+    -----
     Every critical vertex appears exactly as often (creators, destroyers and essentials together)
     as its multiplicity in :func:`critical_points`. Pairs are sorted by dimension, then by
     decreasing persistence.
+
+    Examples
+    --------
+    A height with a second, shallow minimum: one (minimum, saddle) pair, and the global minimum
+    and maximum never paired.
+
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
+    >>> V = m.vertex.positions.numpy().astype(float)
+    >>> d = o3dheat.persistence(m, V[:, 2] + 0.5 * np.cos(3 * V[:, 0]))
+    >>> d
+    PersistenceDiagram(pairs=1 (dim 0: 1, dim 1: 0), essential=2)
+    >>> d.persistence.round(3).tolist(), d.essential_dimension.tolist()
+    ([0.469], [0, 2])
     """
 
     pairs: np.ndarray
@@ -766,7 +836,17 @@ class PersistenceDiagram:
         return len(self.pairs)
 
     def intervals(self, dimension):
-        """(q, 2) ``(birth, death)`` of the pairs of one dimension (0 or 1)."""
+        """(q, 2) ``(birth, death)`` of the pairs of one dimension (0 or 1).
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d, o3dheat
+        >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
+        >>> V = m.vertex.positions.numpy().astype(float)
+        >>> d = o3dheat.persistence(m, V[:, 2] + 0.5 * np.cos(3 * V[:, 0]))
+        >>> d.intervals(0).round(3).tolist(), d.intervals(1).shape
+        ([[-0.969, -0.5]], (0, 2))
+        """
         sel = self.dimension == dimension
         return np.stack([self.birth[sel], self.death[sel]], axis=1)
 
