@@ -1,4 +1,4 @@
-"""Time stepping of the heat equation ``B ∂_t F = −L F / 2`` (paper §2.4): the explicit scheme of
+"""Time stepping of the heat equation ``B ∂_t F = −L F / 2`` (paper §2.3): the explicit scheme of
 eq. (8), ``B F(t+dt) = (B − dt L / 2) F(t)``, and backward (implicit) Euler,
 ``(B + dt L / 2) F(t+dt) = B F(t)``. Either way one matrix is factorized once for all steps, and
 many fields are stepped at once.

@@ -2,7 +2,7 @@
 signatures, the paper's scales, approximation errors, the canonic basis and the inverse.
 
 Time follows the paper: ``K_t = X D_t Xᵀ W`` with ``D_t = diag(exp(-φ(λ_i) t / 2))`` (eq. (6)),
-``φ(λ) = λ`` unless a transfer function is given (§2.4), and ``λ_i`` divided by the first non-zero
+``φ(λ) = λ`` unless a transfer function is given (§2.3), and ``λ_i`` divided by the first non-zero
 eigenvalue when ``normalize="lambda2"`` (§2.2: the kernel is then scale invariant). Peers such as
 LaPy and Sun et al. write ``exp(-λ t)``: ``t_paper = 2 t_peer``.
 
@@ -164,7 +164,7 @@ class HeatKernel:
         One of :data:`NORMALIZATIONS`: "lambda2" divides the eigenvalues by the first non-zero
         one (scale-invariant kernel, §2.2).
     transfer : callable or sequence of float, optional
-        Transfer function φ (§2.4): a vectorised callable ``φ(λ)`` or polynomial coefficients in
+        Transfer function φ (§2.3): a vectorised callable ``φ(λ)`` or polynomial coefficients in
         increasing degree ``c0 + c1 λ + c2 λ² ...``. Values must be finite; a negative φ amplifies.
 
     Examples
@@ -390,7 +390,7 @@ class HeatKernel:
     def scales(self, count=10, grid="paper"):
         """Times for a scale sweep, ``count`` of them, increasing.
 
-        * ``grid="paper"``: the paper's ``t_i = (i / count) / λ_k``, ``i = 1..count`` (§2.4). With
+        * ``grid="paper"``: the paper's ``t_i = (i / count) / λ_k``, ``i = 1..count`` (§2.3). With
           many eigenpairs these times all lie where only the highest modes are damped: Φ_t f barely
           changes across them (it is already the band-limited ``X Xᵀ W f`` at ``t ≈ 0``).
         * ``grid="log"``: log-spaced from ``1 / λ_k`` (the highest mode kept at ``e^{-1/2}``) to
