@@ -15,7 +15,7 @@ from .study import robustness_study
 from .topology import (CriticalPoints, PersistenceDiagram, critical_points, level_sets, persistence,
                        simplify_critical_points)
 
-from . import approximation, batch, cluster, fem, filters, io, plot, sampling, study, topology  # noqa: E402, F401  (o3dheat.filters.apply, o3dheat.batch.run, ...)
+from . import approximation, batch, cluster, fem, figures, filters, io, plot, sampling, study, topology  # noqa: E402, F401  (o3dheat.filters.apply, o3dheat.batch.run, ...)
 
 __version__ = "0.1.0"
 

@@ -405,9 +405,9 @@ def _spectrum(args):
 
 
 def _figure(args):
+    from .figures import paper_figures
     from .filters import one_column
     from .io import read_mesh
-    from .plot import paper_figures
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():

@@ -20,7 +20,7 @@ from .kernel import HeatKernel
 from .spectrum import eigensolve
 from .topology import Surface, critical_points
 
-__all__ = ["default_mesh", "sample_mesh", "SAMPLES", "bumpy_torus", "run", "colormap"]
+__all__ = ["default_mesh", "sample_mesh", "SAMPLES", "bumpy_torus", "run"]
 
 # closed 2-manifolds among pymeshlab's sample meshes (used offline by the studies)
 SAMPLES = {"bunny": "bunny.obj", "airplane": "airplane.obj", "bone": "bone.ply"}
@@ -97,9 +97,20 @@ def sample_mesh(name):
 def bumpy_torus(radial=96, tubular=48):
     """A procedural torus with bumps (no files needed).
 
+    Parameters
+    ----------
+    radial, tubular : int
+        Resolution around the ring and around the tube.
+
     Returns
     -------
     o3d.t.geometry.TriangleMesh
+
+    Examples
+    --------
+    >>> import o3dheat.demo as d
+    >>> len(d.bumpy_torus(32, 16).vertex.positions)
+    512
     """
     import open3d as o3d
 
@@ -113,35 +124,6 @@ def bumpy_torus(radial=96, tubular=48):
     return m
 
 
-def colormap(values, lo=None, hi=None):
-    """Map values to RGB in [0, 1] with a perceptually ordered blue-white-red ramp.
-
-    Parameters
-    ----------
-    values : (n,) array_like
-    lo, hi : float, optional
-        Range; default the 2nd and 98th percentiles (robust to outliers).
-
-    Returns
-    -------
-    (n, 3) float64 ndarray
-
-    Examples
-    --------
-    >>> import o3dheat.demo as d
-    >>> d.colormap([0.0, 1.0], 0, 1).round(2).tolist()
-    [[0.23, 0.3, 0.75], [0.71, 0.02, 0.15]]
-    """
-    v = np.asarray(values, dtype=np.float64)
-    lo = np.percentile(v, 2) if lo is None else lo
-    hi = np.percentile(v, 98) if hi is None else hi
-    s = np.clip((v - lo) / (hi - lo), 0, 1) if hi > lo else np.full_like(v, 0.5)
-    # Moreland's cool-warm anchors
-    anchors = np.array([[0.230, 0.299, 0.754], [0.865, 0.865, 0.865], [0.706, 0.016, 0.150]])
-    x = np.array([0.0, 0.5, 1.0])
-    return np.stack([np.interp(s, x, anchors[:, j]) for j in range(3)], 1)
-
-
 def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed=0, mesh=None,
         echo=print):
     """Run the demo and write its PLY.
@@ -153,8 +135,8 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     k : int
         Eigenpairs.
     reduction : float
-        Fraction of triangles removed by fast-simplification (quadric decimation gives an
-        irregular, curvature-adaptive sampling); 0 keeps the mesh.
+        Fraction of triangles removed by :func:`o3dheat.sampling.decimate` (quadric decimation
+        gives an irregular, curvature-adaptive sampling); 0 keeps the mesh.
     noise : float
         Standard deviation of the Gaussian noise, relative to the range of the height function.
     seed : int
@@ -169,12 +151,21 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
         ``path``, ``n_vertices``, ``scales``, ``errors`` (the paper's grid), ``log_scales``,
         ``errors_log`` (the log grid), ``critical_points`` (of f, then of Φ_t f on each grid),
         ``backend``, ``timings``.
+
+    Examples
+    --------
+    >>> import os, tempfile, o3dheat.demo as d
+    >>> out = d.run(os.path.join(tempfile.mkdtemp(), "t.ply"), k=10, reduction=0.5, mesh=d.bumpy_torus(32, 16),
+    ...             echo=lambda line: None)
+    >>> out["path"].name, len(out["errors"]), out["critical_points"][0] > 0
+    ('t.ply', 10, True)
     """
-    import fast_simplification
     import open3d as o3d
 
+    from .filters import apply
     from .io import write_mesh
     from .mesh import as_arrays
+    from .sampling import decimate
 
     timings = {}
     t0 = time.perf_counter()
@@ -185,8 +176,7 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     timings["load"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if reduction > 0:
-        V, F = fast_simplification.simplify(V, F.astype(np.int32), target_reduction=reduction)
-        V, F = np.asarray(V, np.float64), np.asarray(F, np.int64)
+        V, F = decimate((V, F), reduction=reduction).arrays
     timings["resample"] = time.perf_counter() - t0
     spec = eigensolve((V, F), k=min(k, len(V)))
     timings["eigensolve"] = sum(v for key, v in spec.timings.items() if key != "cache")
@@ -215,14 +205,14 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     result.vertex["f_smooth"] = o3d.core.Tensor(np.ascontiguousarray(smooth))
     result.vertex["f_smooth_log"] = o3d.core.Tensor(np.ascontiguousarray(smooth_log))
     result.vertex["hks"] = o3d.core.Tensor(np.ascontiguousarray(hks))
-    result.vertex.colors = o3d.core.Tensor(colormap(smooth[:, 4]).astype(np.float32))
+    result = apply(result, "colorize", attribute="f_smooth", column=4)  # Φ_t f at t5, coolwarm
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_mesh(out, result)  # run() is asked for this path: the command keeps earlier results apart
     timings["write"] = time.perf_counter() - t0
 
     echo(f"o3dheat demo: {name}, resampled to {len(V)} vertices / {len(F)} faces "
-         f"(fast-simplification, reduction {reduction:g})")
+         f"(quadric decimation, reduction {reduction:g})")
     echo(f"eigenpairs: {spec.k}   backend: {spec.backend}   λ_k = {spec.eigenvalues[-1]:.4g}   "
          f"max residual: {spec.residuals.max():.1e}")
     echo(f"noisy field f: {counts[0]} critical points (minima + saddles + maxima)")

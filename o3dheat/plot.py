@@ -1,12 +1,31 @@
-"""Figures with matplotlib (headless): fields on meshes with level sets and critical points, and
-the variation of the scale hierarchy (the kinds of the paper's Figs. 1–7).
+"""Drawing only: fields on surfaces as real 3D renders, and charts.
 
-Colours follow the paper: maxima red, minima blue, saddles green. Every function returns a
-``matplotlib.figure.Figure`` (save it with ``fig.savefig("name.png")``); nothing is shown on
-screen, so they run on servers without a display.
+Surfaces are rendered with Open3D's offscreen renderer (Filament, software Vulkan through Mesa's
+lavapipe: no display and no GPU needed), with depth: level sets and critical points are drawn on
+the visible surface and hidden behind it. The renders are composed into a
+``matplotlib.figure.Figure`` with a colorbar named after the field and a legend of the critical
+points (maxima red, minima blue, saddles green, as in the paper). Charts (:func:`scale_space`,
+:func:`study`) are plain matplotlib. Nothing is shown on screen: save a figure with
+``fig.savefig("name.png")``. Figure recipes (the paper's figures, the demo's) are in
+:mod:`o3dheat.figures`.
+
+The renderer needs the system packages ``libvulkan1`` and ``mesa-vulkan-drivers`` (Debian names;
+``scripts/setup.sh`` installs them). Where it cannot start, the functions warn once
+(``RuntimeWarning``) and draw with matplotlib's 3D axes instead, which cannot hide what is behind
+the surface. ``renderer="matplotlib"`` (or the environment variable ``O3DHEAT_RENDERER=matplotlib``)
+picks that drawing on purpose, without the warning.
+
+One renderer is kept per process (Open3D cannot destroy one safely); call these functions from
+one thread at a time.
 """
 
 from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import threading
+import warnings
 
 import numpy as np
 
@@ -15,27 +34,375 @@ from .errors import MeshError
 from .fem import _vertex_normals
 from .mesh import as_arrays
 
-__all__ = ["field", "fields", "scale_space", "paper_figures", "study"]
+__all__ = ["field", "fields", "render", "renderer_available", "scale_space", "study", "CRITICAL_COLORS"]
 
+#: Colours of the critical points (the paper's).
 CRITICAL_COLORS = {"maxima": "red", "minima": "blue", "saddles": "green"}
-
-
-def _figure(ncols=1, nrows=1, size=4.0, three_d=True):
-    from matplotlib.figure import Figure  # no pyplot: no GUI backend, no global state
-
-    fig = Figure(figsize=(size * ncols, size * nrows), dpi=100)
-    axes = [fig.add_subplot(nrows, ncols, i + 1, projection="3d" if three_d else None)
-            for i in range(nrows * ncols)]
-    return fig, axes
-
-
+#: Above this many critical points in a panel none are drawn (a noisy field has thousands).
+MAX_CRITICAL_POINTS = 400
+RENDER_SIZE = 1200  # pixels of the (square) offscreen render; panels are crops of it
 _UP = {"z": [0, 1, 2], "y": [2, 0, 1], "x": [1, 2, 0]}  # cyclic: keeps the orientation
+_RENDERERS = ("auto", "open3d", "matplotlib")
+_MISSING = ("Open3D's offscreen renderer cannot start here: it needs Vulkan, which a machine without "
+            "a GPU gets from Mesa's software driver (lavapipe). Install the system packages libvulkan1 "
+            "and mesa-vulkan-drivers (Debian/Ubuntu: sudo apt-get install libvulkan1 mesa-vulkan-drivers; "
+            "scripts/setup.sh does it)")
 
 
+# ------------------------------------------------------------------ the renderer (one per process)
+_lock = threading.RLock()
+_state = {"probe": None, "renderer": None, "warned": False}
+
+_PROBE = """
+import numpy as np, open3d as o3d
+R = o3d.visualization.rendering
+r = R.OffscreenRenderer(16, 16)
+mat = R.MaterialRecord()
+mat.shader = "defaultUnlit"
+r.scene.add_geometry("s", o3d.t.geometry.TriangleMesh.create_sphere(1.0, 4), mat)
+r.setup_camera(60.0, [0, 0, 0], [0, 0, 4], [0, 1, 0])
+print("O3DHEAT_RENDER_OK", np.asarray(r.render_to_image()).shape)
+"""
+
+
+def _probe():
+    """Can Open3D's offscreen renderer start? Tried once per process in a child process: where
+    Vulkan has no driver, Filament aborts the whole process instead of raising."""
+    if _state["probe"] is None:
+        import subprocess
+
+        try:
+            r = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True, timeout=180)
+            ok = r.returncode == 0 and "O3DHEAT_RENDER_OK" in r.stdout
+            lines = [s for s in (r.stderr + r.stdout).splitlines() if s.strip() and "O3DHEAT" not in s]
+            why = "" if ok else (f" (exit status {r.returncode}: {lines[-1].strip()})" if lines
+                                 else f" (exit status {r.returncode})")
+        except (OSError, subprocess.SubprocessError) as e:
+            ok, why = False, f" ({e})"
+        _state["probe"] = (ok, "" if ok else _MISSING + why)
+    return _state["probe"]
+
+
+def renderer_available():
+    """Whether fields are drawn as real 3D renders here, and if not, why.
+
+    Returns
+    -------
+    ok : bool
+        True when Open3D's offscreen renderer works in this process (checked once, in a child
+        process, about a second).
+    reason : str
+        Empty when ``ok``; else what is missing and how to install it.
+
+    Examples
+    --------
+    >>> import o3dheat.plot as plot
+    >>> ok, reason = plot.renderer_available()
+    >>> ok or "libvulkan1" in reason
+    True
+    """
+    with _lock:
+        return _probe()
+
+
+@contextlib.contextmanager
+def _quiet_output():
+    """Filament prints its start-up log on the process's stdout: keep it out of ours."""
+    for stream in (sys.stdout, sys.stderr):
+        if stream is not None:
+            stream.flush()
+    try:
+        saved = [os.dup(1), os.dup(2)]
+    except OSError:  # no standard streams to protect
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        try:  # C stdio buffers its lines when stdout is not a terminal: out with them, to /dev/null
+            import ctypes
+
+            ctypes.CDLL(None).fflush(None)
+        except (OSError, AttributeError):
+            pass
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in saved + [devnull]:
+            os.close(fd)
+
+
+class _Renderer:
+    """Open3D's OffscreenRenderer set up for exact colours: unlit materials (the shading is baked
+    into the vertex colours), no post-processing (Filament's tone mapping, ambient occlusion and
+    anti-aliasing change the colours and cost seconds a frame in software), white background."""
+
+    def __init__(self, size):
+        import open3d as o3d
+
+        R = o3d.visualization.rendering
+        self.size = size
+        with _quiet_output(), o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+            self.r = R.OffscreenRenderer(size, size)
+            view = self.r.scene.view
+            view.set_post_processing(False)
+            view.set_antialiasing(False)
+            view.set_ambient_occlusion(False)
+            view.set_shadowing(False)
+            self.r.scene.show_skybox(False)
+            self.r.scene.set_background([1.0, 1.0, 1.0, 1.0])
+            self.r.render_to_image()  # the first frame logs too
+        self.surface = R.MaterialRecord()
+        self.surface.shader = "defaultUnlit"
+        self.line = R.MaterialRecord()
+        self.line.shader = "unlitLine"
+
+    def image(self, meshes, lines, line_width, target, eye, up, half, near, far):
+        import open3d as o3d
+
+        R = o3d.visualization.rendering
+        with _lock:
+            scene = self.r.scene
+            scene.clear_geometry()
+            for i, m in enumerate(meshes):
+                scene.add_geometry(f"mesh{i}", m, self.surface)
+            if lines is not None:
+                self.line.line_width = float(line_width)
+                scene.add_geometry("lines", lines, self.line)
+            scene.camera.set_projection(R.Camera.Projection.Ortho, -half, half, -half, half, near, far)
+            scene.camera.look_at(target, eye, up)
+            img = np.asarray(self.r.render_to_image()).copy()
+            scene.clear_geometry()
+        return img
+
+
+def _renderer(choice):
+    """The renderer to use: an ``_Renderer``, or None for matplotlib (warning once when "auto"
+    had to fall back)."""
+    if choice not in _RENDERERS:
+        raise MeshError(f"renderer must be one of {', '.join(_RENDERERS)}, got {choice!r}")
+    if choice == "auto":
+        choice = os.environ.get("O3DHEAT_RENDERER", "auto").strip().lower() or "auto"
+        if choice not in _RENDERERS:
+            raise MeshError(f"O3DHEAT_RENDERER must be one of {', '.join(_RENDERERS)}, got {choice!r}")
+        fallback = choice == "auto"
+    else:
+        fallback = False
+    if choice == "matplotlib":
+        return None
+    with _lock:
+        if _state["renderer"] is None:
+            ok, reason = _probe()
+            if not ok:
+                if not fallback:
+                    raise MeshError(reason + "; or pass renderer='matplotlib'")
+                if not _state["warned"]:
+                    warnings.warn(reason + ". Drawing with matplotlib instead (no hidden-surface removal); "
+                                  "set O3DHEAT_RENDERER=matplotlib to choose that without this warning.",
+                                  RuntimeWarning, stacklevel=4)
+                    _state["warned"] = True
+                return None
+            _state["renderer"] = _Renderer(RENDER_SIZE)
+        return _state["renderer"]
+
+
+# ------------------------------------------------------------------ geometry of a view
 def _upright(V, up):
     if up not in _UP:
         raise MeshError(f"up must be 'x', 'y' or 'z', got {up!r}")
     return V[:, _UP[up]]
+
+
+def _camera(view):
+    """Unit vectors (toward the eye, right, up) for (elevation, azimuth) in degrees, z up."""
+    try:
+        elev, azim = np.radians(np.asarray(view, dtype=np.float64).reshape(2))
+    except (TypeError, ValueError):
+        raise MeshError(f"view must be (elevation, azimuth) in degrees, got {view!r}") from None
+    d = np.array([np.cos(elev) * np.cos(azim), np.cos(elev) * np.sin(azim), np.sin(elev)])
+    up = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.999 else np.array([-np.cos(azim), -np.sin(azim), 0.0])
+    right = np.cross(-d, up)
+    right /= np.linalg.norm(right)
+    return d, right, np.cross(right, -d)
+
+
+class _View:
+    """An orthographic view framing every vertex (all parts of a multi-part mesh), with a margin."""
+
+    def __init__(self, V, view, margin=0.04):
+        self.d, self.right, self.up = _camera(view)
+        c = (V.min(0) + V.max(0)) / 2
+        u, v = (V - c) @ self.right, (V - c) @ self.up
+        self.radius = max(float(np.linalg.norm(V - c, axis=1).max()), 1e-12)
+        pad = margin * max(np.ptp(u), np.ptp(v), 1e-9 * self.radius)
+        self.u = (u.min() - pad, u.max() + pad)
+        self.v = (v.min() - pad, v.max() + pad)
+        self.target = c + np.mean(self.u) * self.right + np.mean(self.v) * self.up
+        self.half = max(np.ptp(self.u), np.ptp(self.v)) / 2
+        self.diagonal = float(np.linalg.norm(np.ptp(V, axis=0)))
+
+    def crop(self, size):
+        """Pixel rows and columns of the square render that hold the framed geometry."""
+        w = int(np.ceil(size * np.ptp(self.u) / (2 * self.half)))
+        h = int(np.ceil(size * np.ptp(self.v) / (2 * self.half)))
+        c0, r0 = (size - w) // 2, (size - h) // 2
+        return slice(r0, r0 + h), slice(c0, c0 + w)
+
+
+def _shade(normals, view):
+    """Lambert shading by a key light above and left of the viewer (normals turned toward the
+    viewer, so the orientation of the faces does not matter)."""
+    light = view.d + 0.55 * view.up - 0.35 * view.right
+    light /= np.linalg.norm(light)
+    n = normals * np.where(normals @ view.d < 0, -1.0, 1.0)[:, None]
+    return 0.38 + 0.62 * np.clip(n @ light, 0.0, 1.0)
+
+
+_SPHERE = None
+
+
+def _sphere():
+    global _SPHERE
+    if _SPHERE is None:
+        import open3d as o3d
+
+        s = o3d.geometry.TriangleMesh.create_sphere(1.0, 8)
+        _SPHERE = np.asarray(s.vertices), np.asarray(s.triangles)
+    return _SPHERE
+
+
+def _tmesh(V, F, rgb):
+    import open3d as o3d
+
+    m = o3d.t.geometry.TriangleMesh()  # tensor meshes: Open3D's legacy path is erratically slow here
+    m.vertex.positions = o3d.core.Tensor(np.ascontiguousarray(V, dtype=np.float32))
+    m.triangle.indices = o3d.core.Tensor(np.ascontiguousarray(F, dtype=np.int32))
+    m.vertex.colors = o3d.core.Tensor(np.ascontiguousarray(np.clip(rgb, 0, 1), dtype=np.float32))
+    return m
+
+
+# ------------------------------------------------------------------ one panel
+class _Panel:
+    """What one panel shows, computed once: colours, level sets, critical points."""
+
+    def __init__(self, V, F, f, lo, hi, cmap, level_sets, critical_points, S, span=None):
+        from .topology import critical_points as find_critical
+        from .topology import level_sets as find_levels
+
+        self.V, self.F, self.f, self.lo, self.hi, self.cmap = V, F, f, lo, hi, cmap
+        self.levels = np.zeros(0)
+        self.segments = np.zeros((0, 2, 3))
+        if level_sets is not None and level_sets is not False:
+            if np.isscalar(level_sets):
+                count = checks.count(int(level_sets), "level_sets", maximum=1000)
+                a, b = span if span is not None else (f.min(), f.max())  # panels compared: the same values
+                self.levels = np.linspace(a, b, count + 2)[1:-1] if b > a else np.zeros(0)
+            else:
+                self.levels = np.atleast_1d(np.asarray(level_sets, dtype=np.float64))
+            if len(self.levels):
+                ls = find_levels(S if S is not None else (V, F), f, values=self.levels)
+                P, L = np.asarray(ls.points), np.asarray(ls.lines)
+                self.segments = P[L] if len(L) else np.zeros((0, 2, 3))
+        self.critical = {}
+        if critical_points is not None and critical_points is not False:
+            cp = find_critical(S if S is not None else (V, F), f) if critical_points is True else critical_points
+            self.critical = {kind: np.asarray(getattr(cp, kind)) for kind in CRITICAL_COLORS}
+            m, s, M = cp.counts  # a saddle of multiplicity k counts k times, as everywhere in o3dheat
+            self.counts = {"minima": m, "saddles": s, "maxima": M}
+        self.n_critical = sum(self.counts.values()) if self.critical else 0
+        self.draw_critical = 0 < self.n_critical <= MAX_CRITICAL_POINTS
+
+    def rgb(self, values):
+        from matplotlib import colormaps
+
+        s = np.clip((values - self.lo) / (self.hi - self.lo), 0, 1) if self.hi > self.lo else np.full(len(values), 0.5)
+        return colormaps[self.cmap](s)[:, :3]
+
+    def render(self, renderer, view, normals, line_width=None, point_size=1.0):
+        """(h, w, 3) uint8 image of the surface, its level sets and critical points;
+        ``line_width`` in pixels of the render (default: a third of a percent of its size)."""
+        import open3d as o3d
+
+        V, F = self.V, self.F
+        V = V - view.target  # about the origin: float32 keeps the detail of a scan far from it
+        meshes = [_tmesh(V, F, self.rgb(self.f) * _shade(normals, view)[:, None])]
+        eps = 0.0015 * view.diagonal  # level sets and points sit just off the surface, on the viewer's side
+        toward = normals * np.where(normals @ view.d < 0, -1.0, 1.0)[:, None]
+        lines = None
+        if len(self.segments):
+            from scipy.spatial import cKDTree
+
+            P = self.segments.reshape(-1, 3) - view.target
+            _, near = cKDTree(V).query(P)
+            grazing = (np.abs(normals[near] @ view.d) < 0.1).reshape(-1, 2).all(axis=1)
+            keep = np.repeat(~grazing, 2)  # edge-on segments would stick out of the silhouette
+            P = P[keep] + eps * toward[near[keep]]
+            if len(P):
+                lines = o3d.t.geometry.LineSet()
+                lines.point.positions = o3d.core.Tensor(P.astype(np.float32))
+                lines.line.indices = o3d.core.Tensor(np.arange(len(P), dtype=np.int32).reshape(-1, 2))
+                lines.line.colors = o3d.core.Tensor(np.zeros((len(P) // 2, 3), np.float32))
+        if self.draw_critical:
+            from matplotlib.colors import to_rgb
+
+            Vs, Fs = _sphere()
+            r = 0.0075 * view.diagonal * point_size
+            for kind, color in CRITICAL_COLORS.items():
+                idx = self.critical[kind]
+                if not len(idx):
+                    continue
+                centers = V[idx] + 0.5 * r * toward[idx]
+                P = (centers[:, None, :] + r * Vs[None]).reshape(-1, 3)
+                T = (Fs[None] + len(Vs) * np.arange(len(idx))[:, None, None]).reshape(-1, 3)
+                shade = _shade(np.tile(Vs, (len(idx), 1)), view)
+                meshes.append(_tmesh(P, T, np.asarray(to_rgb(color))[None] * shade[:, None]))
+        eye = 4.0 * view.radius * view.d
+        size = renderer.size
+        width = max(2.5, size / 300 if line_width is None else line_width)  # thinner lines break up
+        img = renderer.image(meshes, lines, width, np.zeros(3), eye, view.up,
+                             view.half, 2.5 * view.radius, 5.5 * view.radius)
+        rows, cols = view.crop(size)
+        return img[rows, cols]
+
+    def draw_matplotlib(self, ax, view_angles, view):
+        """The fallback: matplotlib's 3D axes (painter's algorithm; lines and points are drawn
+        only where the nearest vertex faces the viewer)."""
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+        V, F = self.V, self.F
+        n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+        n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-300
+        colors = np.c_[self.rgb(self.f[F].mean(axis=1)) * _shade(n, view)[:, None], np.ones(len(F))]
+        facing = _vertex_normals(V, F) @ view.d >= 0
+        ax.computed_zorder = False
+        ax.add_collection3d(Poly3DCollection(V[F], facecolors=colors, edgecolors="none", linewidths=0, zorder=1))
+        if len(self.segments):
+            from scipy.spatial import cKDTree
+
+            _, near = cKDTree(V).query(self.segments.mean(axis=1))
+            ax.add_collection3d(Line3DCollection(self.segments[facing[near]], colors="black", linewidths=0.6,
+                                                 zorder=2))
+        if self.draw_critical:
+            for kind, color in CRITICAL_COLORS.items():
+                idx = self.critical[kind]
+                idx = idx[facing[idx]]
+                if len(idx):
+                    ax.scatter(*V[idx].T, color=color, s=14, depthshade=False, edgecolors="white",
+                               linewidths=0.3, zorder=3)
+        lo_v, hi_v = V.min(0), V.max(0)
+        ax.set_xlim(lo_v[0], hi_v[0])
+        ax.set_ylim(lo_v[1], hi_v[1])
+        ax.set_zlim(lo_v[2], hi_v[2])
+        ax.set_box_aspect(np.maximum(np.ptp(V, axis=0), 1e-9 * view.diagonal))  # equal scales
+        ax.view_init(elev=view_angles[0], azim=view_angles[1])
+        ax.set_axis_off()
+
+
+# ------------------------------------------------------------------ composing figures
+def _field_values(f, n):
+    return checks.field(f, n, "the field")
 
 
 def _surface(V, F, level_sets, critical_points):
@@ -46,106 +413,165 @@ def _surface(V, F, level_sets, critical_points):
     return Surface.from_faces(len(V), F, V) if wanted else None
 
 
-def _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title, S=None):
-    from matplotlib import colormaps
-    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+def _range(values):
+    lo, hi = np.percentile(values, [2, 98])
+    if not hi > lo:
+        lo, hi = float(np.min(values)), float(np.max(values))
+    return float(lo), float(hi)
 
-    from .topology import critical_points as find_critical
-    from .topology import level_sets as find_levels
 
-    s = np.clip((f[F].mean(axis=1) - lo) / (hi - lo), 0, 1) if hi > lo else np.full(len(F), 0.5)
-    colors = colormaps[cmap](s)
-    # a little Lambert shading so the shape reads
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    vn = _vertex_normals(V, F)
-    n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-300
-    elev, azim = np.radians(view[0]), np.radians(view[1])
-    eye = np.array([np.cos(elev) * np.cos(azim), np.cos(elev) * np.sin(azim), np.sin(elev)])
-    colors[:, :3] *= (0.55 + 0.45 * np.abs(n @ eye))[:, None]
-    # lines and points are drawn over the surface, only where it faces the viewer
-    ax.computed_zorder = False
-    facing = vn @ eye >= 0
-    ax.add_collection3d(Poly3DCollection(V[F], facecolors=colors, edgecolors="none", linewidths=0, zorder=1))
-    if level_sets is not None and level_sets is not False:
-        kw = {"count": int(level_sets)} if np.isscalar(level_sets) else {"values": level_sets}
-        ls = find_levels(S if S is not None else (V, F), f, **kw)
-        P, L = np.asarray(ls.points), np.asarray(ls.lines)
-        if len(L):
-            from scipy.spatial import cKDTree
+def _colorbar(fig, ax, panel, label, location, values):
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
-            _, near = cKDTree(V).query(P[L].mean(axis=1))
-            L = L[facing[near]]
-            ax.add_collection3d(Line3DCollection(P[L], colors="black", linewidths=0.6, zorder=2))
-    if critical_points is not None and critical_points is not False:
-        cp = find_critical(S if S is not None else (V, F), f) if critical_points is True else critical_points
+    lo, hi = (panel.lo, panel.hi) if panel.hi > panel.lo else (panel.lo - 0.5, panel.lo + 0.5)
+    extend = {(False, False): "neither", (True, False): "min", (False, True): "max", (True, True): "both"}[
+        (bool(values.min() < lo), bool(values.max() > hi))]
+    fmt = ScalarFormatter(useMathText=True)
+    fmt.set_powerlimits((-2, 3))
+    horizontal = location == "bottom"
+    cb = fig.colorbar(ScalarMappable(Normalize(lo, hi), panel.cmap), ax=ax, location=location, extend=extend,
+                      format=fmt, shrink=0.85 if horizontal else 0.8, aspect=22 if horizontal else 25,
+                      pad=0.02)
+    cb.set_ticks(MaxNLocator(4 if horizontal else 6))
+    cb.set_label(label, fontsize=9)
+    cb.ax.tick_params(labelsize=8)
+    levels = panel.levels[(panel.levels >= lo) & (panel.levels <= hi)]
+    if len(levels) and len(levels) <= 50:
+        cb.add_lines(levels, colors=["black"] * len(levels), linewidths=[0.6] * len(levels))
+    return cb
+
+
+def _legend(fig, panels, counts):
+    from matplotlib.lines import Line2D
+
+    handles = []
+    if any(len(p.segments) for p in panels):
+        n = max(len(p.levels) for p in panels)
+        handles.append(Line2D([], [], color="black", lw=1.0, label=f"level sets ({n})"))
+    if any(p.critical for p in panels):
         for kind, color in CRITICAL_COLORS.items():
-            idx = getattr(cp, kind)
-            idx = idx[facing[idx]]
-            if len(idx):
-                ax.scatter(*V[idx].T, color=color, s=16, depthshade=False, edgecolors="white",
-                           linewidths=0.3, zorder=3)
-    lo_v, hi_v = V.min(0), V.max(0)
-    pad = 0.02 * np.ptp(V, axis=0).max()
-    ax.set_xlim(lo_v[0] - pad, hi_v[0] + pad)
-    ax.set_ylim(lo_v[1] - pad, hi_v[1] + pad)
-    ax.set_zlim(lo_v[2] - pad, hi_v[2] + pad)
-    ax.set_box_aspect(np.ptp(V, axis=0) + 2 * pad, zoom=1.2)  # equal scales on the three axes
-    ax.view_init(elev=view[0], azim=view[1])
-    ax.set_axis_off()
-    if title:
-        ax.set_title(title, fontsize=9)
+            label = kind + (f" ({panels[0].counts[kind]:,})" if counts else "")
+            handles.append(Line2D([], [], ls="", marker="o", ms=6, color=color, markeredgecolor="white",
+                                  label=label))
+    if handles:
+        fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=8, frameon=False,
+                   handletextpad=0.3, columnspacing=1.2)
 
 
-def _field_values(f, n):
-    return checks.field(f, n, "the field")
+def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cmap, shared_range, size,
+             suptitle, up, label, renderer, single):
+    from matplotlib.figure import Figure  # no pyplot: no GUI backend, no global state
+
+    V = _upright(V, up)
+    T = values.shape[1]
+    if titles is not None and len(titles) != T:
+        raise MeshError(f"{len(titles)} titles for {T} fields")
+    if ncols is not None:
+        ncols = checks.count(ncols, "ncols")
+    ncols = min(ncols or min(T, 5), T)
+    nrows = -(-T // ncols)
+    frame = _View(V, view)
+    r = _renderer(renderer)
+    S = _surface(V, F, level_sets, critical_points)
+    ranges = [_range(values)] * T if shared_range else [_range(values[:, i]) for i in range(T)]
+    span = (values.min(), values.max()) if shared_range else None
+    panels = [_Panel(V, F, values[:, i], *ranges[i], cmap, level_sets, critical_points, S, span) for i in range(T)]
+    aspect = float(np.clip(np.ptp(frame.u) / np.ptp(frame.v), 0.25, 4.0))  # width / height of a picture
+    w = size * min(1.0, aspect) if aspect < 1 else size
+    h = w / aspect
+    extra_h = (0.35 if titles is not None else 0.0) + (0.45 if not shared_range else 0.0)
+    fig = Figure(figsize=(ncols * w + (1.1 if shared_range else 0.2),
+                          nrows * (h + extra_h) + 0.45 + (0.45 if suptitle else 0.0)),
+                 dpi=100, layout="constrained")
+    fig.get_layout_engine().set(w_pad=0.04, h_pad=0.04, wspace=0.03, hspace=0.05)
+    axes = []
+    normals = _vertex_normals(V, F)
+    for i, p in enumerate(panels):
+        if r is not None:
+            ax = fig.add_subplot(nrows, ncols, i + 1)
+            # level sets 1.6 pixels wide in the saved figure (100 dpi), whatever the downsampling
+            shrink = r.size * np.ptp(frame.u) / (2 * frame.half) / (w * 100)
+            ax.imshow(p.render(r, frame, normals, line_width=1.6 * shrink), interpolation="antialiased")
+            ax.set_axis_off()
+        else:
+            ax = fig.add_subplot(nrows, ncols, i + 1, projection="3d")
+            p.draw_matplotlib(ax, view, frame)
+        if titles is not None:
+            ax.set_title(titles[i], fontsize=9)
+        if p.critical and not p.draw_critical:
+            ax.text(0.5, 0.0, f"{p.n_critical:,} critical points: too many to draw", transform=ax.transAxes,
+                    ha="center", va="top", fontsize=7, color="0.35")
+        axes.append(ax)
+    if shared_range:
+        _colorbar(fig, axes, panels[0], label, "right", values)
+    else:
+        for ax, p in zip(axes, panels):
+            _colorbar(fig, ax, p, label, "bottom", p.f)
+    _legend(fig, panels, counts=single)
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=11)
+    return fig
 
 
 def field(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cmap="coolwarm",
-          title=None, size=5.0, up="z"):
+          title=None, size=5.0, up="z", label="f", renderer="auto"):
     """A mesh coloured by a field, with its level sets and critical points (paper P16).
+
+    A 3D render (hidden surfaces removed) with a colorbar named ``label`` and a legend of the
+    critical points (red maxima, blue minima, green saddles, with their numbers). Above
+    ``MAX_CRITICAL_POINTS`` critical points (a noisy field) none are drawn, and the panel says so.
 
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
+        Every part of a multi-part mesh is framed.
     f : (n,) array_like
     level_sets : int, sequence of float, or None
-        Number of evenly spaced level sets, their values, or None for none.
+        Number of level sets evenly spaced strictly between the field's minimum and maximum,
+        their values, or None for none. They are marked on the colorbar too.
     critical_points : bool or CriticalPoints
-        True computes them (red maxima, blue minima, green saddles); False draws none.
+        True computes them; False draws none.
     view : (elevation, azimuth) in degrees
+        The direction the surface is seen from, ``up`` being vertical (orthographic view).
     cmap : str
-        Matplotlib colormap; the range is the 2nd–98th percentile of f.
+        Matplotlib colormap; the range is the 2nd–98th percentile of f (the colorbar's arrows
+        show values beyond it).
     title : str, optional
     size : float
-        Inches.
+        Inches (the picture's longer side).
     up : {"z", "y", "x"}
         The axis drawn vertical (scans often have y up).
+    label : str
+        The field's name, written on the colorbar.
+    renderer : {"auto", "open3d", "matplotlib"}
+        "auto": Open3D's offscreen renderer, or matplotlib with a warning where it cannot start;
+        "open3d" raises :class:`o3dheat.MeshError` there instead; "matplotlib": 3D axes without
+        hidden-surface removal. "auto" follows the environment variable ``O3DHEAT_RENDERER``.
 
     Returns
     -------
     matplotlib.figure.Figure
+        Its first axes holds the picture, the next the colorbar.
 
     Examples
     --------
     >>> import open3d as o3d, o3dheat.plot as plot
     >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)
-    >>> fig = plot.field(m, m.vertex.positions.numpy()[:, 2], title="height")
-    >>> len(fig.axes)
-    1
+    >>> fig = plot.field(m, m.vertex.positions.numpy()[:, 2], title="height", label="z")
+    >>> fig.axes[1].get_ylabel()
+    'z'
     """
     V, F = as_arrays(mesh)
     f = _field_values(f, len(V))
-    V = _upright(V, up)
-    lo, hi = np.percentile(f, [2, 98])
-    fig, (ax,) = _figure(size=size)
-    _draw(ax, V, F, f, level_sets, critical_points, view, cmap, lo, hi, title,
-          _surface(V, F, level_sets, critical_points))
-    fig.subplots_adjust(0, 0, 1, 0.95 if title else 1)
-    return fig
+    return _compose(V, F, f[:, None], [title] if title else None, 1, level_sets, critical_points, view, cmap,
+                    True, size, None, up, label, renderer, single=True)
 
 
 def fields(mesh, F_values, titles=None, ncols=None, level_sets=10, critical_points=True,
-           view=(20.0, -60.0), cmap="coolwarm", shared_range=True, size=3.5, suptitle=None, up="z"):
+           view=(20.0, -60.0), cmap="coolwarm", shared_range=True, size=3.5, suptitle=None, up="z",
+           label="f", renderer="auto"):
     """Several fields on one mesh side by side (for example ``Φ_t f`` at several scales).
 
     Parameters
@@ -156,10 +582,11 @@ def fields(mesh, F_values, titles=None, ncols=None, level_sets=10, critical_poin
     titles : sequence of str, optional
     ncols : int, optional
         Panels per row (default: all in one row, at most 5).
-    level_sets, critical_points, view, cmap, up
+    level_sets, critical_points, view, cmap, up, label, renderer
         As for :func:`field` (``critical_points`` True or False).
     shared_range : bool
-        One colour range for all panels (compare values across scales).
+        One colour range, one colorbar and the same level-set values for all panels (compare
+        values across scales); False gives each panel its own range, colorbar and level sets.
     size : float
         Inches per panel.
     suptitle : str, optional
@@ -167,31 +594,77 @@ def fields(mesh, F_values, titles=None, ncols=None, level_sets=10, critical_poin
     Returns
     -------
     matplotlib.figure.Figure
+        The T pictures' axes first, then the colorbars'.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat.plot as plot
+    >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)
+    >>> V = m.vertex.positions.numpy()
+    >>> fig = plot.fields(m, V, titles=["x", "y", "z"], critical_points=False, suptitle="coordinates")
+    >>> len(fig.axes)  # three pictures and one shared colorbar
+    4
     """
     V, Fc = as_arrays(mesh)
-    V = _upright(V, up)
     G = np.asarray(F_values, dtype=np.float64)
     if G.ndim == 1:
         G = G[:, None]
     G = _field_values(G, len(V))
-    T = G.shape[1]
-    ncols = ncols or min(T, 5)
-    nrows = -(-T // ncols)
-    fig, axes = _figure(ncols, nrows, size)
-    lo, hi = np.percentile(G, [2, 98])
-    S = _surface(V, Fc, level_sets, critical_points)
-    for i, ax in enumerate(axes):
-        if i >= T:
-            ax.set_axis_off()
-            continue
-        if not shared_range:
-            lo, hi = np.percentile(G[:, i], [2, 98])
-        _draw(ax, V, Fc, G[:, i], level_sets, critical_points, view, cmap, lo, hi,
-              titles[i] if titles is not None else None, S)
-    if suptitle:
-        fig.suptitle(suptitle, fontsize=11)
-    fig.subplots_adjust(0, 0, 1, 0.88 if suptitle else (0.93 if titles is not None else 1.0), wspace=0, hspace=0.08)
-    return fig
+    return _compose(V, Fc, G, titles, ncols, level_sets, critical_points, view, cmap, shared_range, size,
+                    suptitle, up, label, renderer, single=False)
+
+
+def render(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cmap="coolwarm", up="z",
+           vrange=None):
+    """The 3D render alone, as an image array (what :func:`field` shows, without colorbar).
+
+    Parameters
+    ----------
+    mesh, f, level_sets, critical_points, view, cmap, up
+        As for :func:`field`.
+    vrange : (float, float), optional
+        The values mapped to the ends of the colormap (default: 2nd–98th percentile).
+
+    Returns
+    -------
+    (h, w, 3) uint8 ndarray
+        White background; every vertex inside the frame.
+
+    Raises
+    ------
+    MeshError
+        Where Open3D's offscreen renderer cannot start (the message says what to install).
+
+    Examples
+    --------
+    >>> import open3d as o3d, o3dheat.plot as plot
+    >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)
+    >>> img = plot.render(m, m.vertex.positions.numpy()[:, 0])
+    >>> img.dtype, img.shape[2], bool((img[0] == 255).all())  # white around the sphere
+    (dtype('uint8'), 3, True)
+    """
+    V, F = as_arrays(mesh)
+    f = _field_values(f, len(V))
+    V = _upright(V, up)
+    lo, hi = _range(f) if vrange is None else (float(vrange[0]), float(vrange[1]))
+    frame = _View(V, view)
+    r = _renderer("open3d")
+    panel = _Panel(V, F, f, lo, hi, cmap, level_sets, critical_points, _surface(V, F, level_sets, critical_points))
+    return panel.render(r, frame, _vertex_normals(V, F))
+
+
+# ------------------------------------------------------------------ charts
+def _scale_ticks(ax, t):
+    """Ticks at the scales themselves (at most ~6 labelled), no minor labels: a log axis over
+    less than a decade otherwise writes overlapping minor labels ('0.00010.0002')."""
+    from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
+
+    step = max(1, -(-len(t) // 6))
+    ticks = t[::step]
+    ax.xaxis.set_major_locator(FixedLocator(ticks))
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xticks(ticks, [f"{x:.2g}" for x in ticks], rotation=30, ha="right", fontsize=8)
 
 
 def scale_space(ss, title=None):
@@ -208,6 +681,7 @@ def scale_space(ss, title=None):
     matplotlib.figure.Figure
         Left: ``‖Φ_{t_{i+1}} f − Φ_{t_i} f‖∞`` and ε∞ against t; right: minima, saddles,
         maxima and their total against t. The stop scale is marked when a criterion held.
+        The t axis is logarithmic on a log grid of times; ticks sit at the scales.
 
     Examples
     --------
@@ -218,17 +692,20 @@ def scale_space(ss, title=None):
     >>> len(fig.axes)
     2
     """
+    from matplotlib.figure import Figure
+
     from .approximation import ScaleSpace
 
     if not isinstance(ss, ScaleSpace):
         raise MeshError(f"expected a ScaleSpace (from o3dheat.scale_space), got {type(ss).__name__}")
-    fig, (a1, a2) = _figure(2, 1, 4.0, three_d=False)
+    fig = Figure(figsize=(9.0, 3.9), dpi=100, layout="constrained")
+    a1, a2 = fig.subplots(1, 2)
     t = ss.scales
     if len(t) > 1:
-        a1.plot(t[1:], ss.variation, "o-", color="black", label="‖Φ_{t_{i+1}} f − Φ_{t_i} f‖∞")
-    a1.plot(t, ss.errors, "s--", color="gray", label="ε∞ (relative)")
-    a1.set_xlabel("t")
-    a1.set_title("variation of Φ_t f", fontsize=10)
+        a1.plot(t[1:], ss.variation, "o-", color="black",
+                label=r"$\|\Phi_{t_{i+1}} f - \Phi_{t_i} f\|_\infty$ (at $t_{i+1}$)")
+    a1.plot(t, ss.errors, "s--", color="gray", label=r"$\epsilon_\infty$ (relative)")
+    a1.set_title(r"variation of $\Phi_t f$", fontsize=10)
     a1.legend(fontsize=8)
     c = ss.critical_counts
     if np.all(c >= 0):
@@ -236,186 +713,32 @@ def scale_space(ss, title=None):
             a2.plot(t, c[:, j], "o-", color=color, label=name)
         a2.plot(t, c.sum(axis=1), "k:", label="total")
         a2.legend(fontsize=8)
-    a2.set_xlabel("t")
-    a2.set_title("critical points of Φ_t f", fontsize=10)
+        from matplotlib.ticker import MaxNLocator
+
+        a2.yaxis.set_major_locator(MaxNLocator(integer=True))
+    a2.set_title(r"critical points of $\Phi_t f$", fontsize=10)
     if ss.stopped:
         for a in (a1, a2):
-            a.axvline(t[ss.stop_index], color="orange", lw=1)
-    if t[0] > 0 and t[-1] > 20 * t[0]:  # a log grid of times
-        for a in (a1, a2):
+            a.axvline(t[ss.stop_index], color="orange", lw=1, label="stop")
+    for a in (a1, a2):
+        if t[0] > 0 and t[-1] > 20 * t[0]:  # a log grid of times
             a.set_xscale("log")
+        _scale_ticks(a, t)
+        a.set_xlabel("t")
+        a.tick_params(axis="y", labelsize=8)
     if title:
         fig.suptitle(title, fontsize=11)
-    fig.tight_layout()
     return fig
-
-
-def _fields_up(up, *args, **kwargs):
-    return fields(*args, up=up, **kwargs)
-
-
-def _save(fig, path):
-    from .io import atomic_write
-
-    atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=100))
-
-
-def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", max_faces=30000, up="z"):
-    """The kinds of the paper's Figs. 1–7 for one mesh, as PNGs with an ``index.md``.
-
-    Parameters
-    ----------
-    mesh : Open3D mesh or (V, F)
-        Meshes above ``max_faces`` faces are decimated first (drawing cost).
-    out : str or Path
-        Output folder (created).
-    field : (n,) array_like, optional
-        The field to study; default the height along the longest axis plus Gaussian noise.
-    k : int
-        Eigenpairs of the main spectrum (the comparisons use 10 and k).
-    noise : float
-        Noise standard deviation relative to the range of the height (default field only).
-    seed : int
-    name : str
-        Used in titles.
-    max_faces : int
-        Larger meshes are decimated to this many faces first (matplotlib draws every face).
-    up : {"z", "y", "x"}
-        The axis drawn vertical.
-
-    Returns
-    -------
-    pathlib.Path
-        The ``index.md`` written in ``out``.
-    """
-    from pathlib import Path
-
-    from .approximation import feature_driven
-    from .approximation import scale_space as hierarchy
-    from .diffusion import diffuse
-    from .kernel import HeatKernel, heat_kernel
-    from .mesh import prepare
-    from .sampling import decimate, transfer
-    from .spectrum import eigensolve
-    from .topology import Surface, critical_points, persistence, simplify_critical_points
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    V0, F0 = as_arrays(mesh)
-    if field is None:
-        axis = int(np.argmax(np.ptp(V0, axis=0)))
-        h = V0[:, axis]
-        f0 = h + noise * np.ptp(h) * np.random.default_rng(seed).standard_normal(len(V0))
-    else:
-        f0 = _field_values(np.asarray(checks.values(field), dtype=np.float64).reshape(len(V0), -1)[:, 0], len(V0))
-    prep = prepare((V0, F0))
-    V, F, f = prep.V, prep.F, prep.restrict(f0)
-    if len(F) > max_faces:
-        Vd, Fd = decimate((V, F), target_faces=max_faces).arrays
-        f, V, F = transfer(f, (V, F), Vd), Vd, Fd
-    k = min(k, len(V) - 2)
-    K = HeatKernel(eigensolve((V, F), k=k))
-    K10 = HeatKernel(eigensolve((V, F), k=min(10, k)))
-    t = K.scales()
-    entries = []
-
-    S = Surface.from_faces(len(V), F, V)
-
-    def count(g):
-        return sum(critical_points(S, g).counts)
-
-    # Fig. 1: level sets and critical points across scales, and their variation
-    ss = hierarchy(K, f, stop="linf")
-    cols = [0, 4, 9]
-    titles = [f"f ({count(f)} critical points)"] + [
-        f"Φ_t f, t = t{i + 1} ({ss.critical_counts[i].sum()} c.p., ε∞ {ss.errors[i]:.3f})" for i in cols]
-    _save(_fields_up(up, (V, F), np.c_[f, ss.fields[:, cols]], titles=titles, ncols=4,
-                 suptitle=f"{name}: multi-scale approximation, k = {k} (Fig. 1e-k)"), out / "fig1_scales.png")
-    _save(scale_space(ss, title=f"{name}: variation and critical points vs t (Fig. 1c,d)"), out / "fig1_variation.png")
-    entries += [("fig1_scales.png", "the field and Φ_t f at the paper's scales t1, t5, t10 with level sets and "
-                 "critical points (red maxima, blue minima, green saddles)"),
-                ("fig1_variation.png", "‖Φ_{t_{i+1}} f − Φ_{t_i} f‖∞, ε∞ and the number of critical points "
-                 "against t; the l∞ stop criterion (tolerance 1e-3 ‖f‖∞) "
-                 + (f"holds at scale {ss.stop_index + 1}" if ss.stopped else "holds at none of the scales"))]
-    # the same on the log grid (1/λ_k .. 2 ln(100)/λ_2): the whole multi-scale range
-    sl = hierarchy(K, f, scales=K.scales(10, grid="log"))
-    titles = [f"f ({count(f)} critical points)"] + [
-        f"Φ_t f, log t{i + 1} = {sl.scales[i]:.3g} ({sl.critical_counts[i].sum()} c.p.)" for i in cols]
-    _save(_fields_up(up, (V, F), np.c_[f, sl.fields[:, cols]], titles=titles, ncols=4,
-                 suptitle=f"{name}: Φ_t f on the log grid 1/λ_k .. 2 ln(100)/λ_2, k = {k}"),
-          out / "fig1_log_scales.png")
-    _save(scale_space(sl, title=f"{name}: variation and critical points vs t, log grid"),
-          out / "fig1_log_variation.png")
-    entries += [("fig1_log_scales.png", "the field and Φ_t f at t1, t5, t10 of the log grid, from 1/λ_k (what k "
-                 "eigenpairs resolve) to 2 ln(100)/λ_2 (nearly constant): critical points "
-                 f"{sl.critical_counts[0].sum()} -> {sl.critical_counts[-1].sum()}"),
-                ("fig1_log_variation.png", "variation, ε∞ and critical points against t on the log grid")]
-    # Fig. 2: 10 vs k eigenpairs at two scales
-    panels, titles = [], []
-    for KK, kk in ((K10, K10.spectrum.k), (K, k)):
-        for i in (0, 9):
-            ti = KK.scales()[i]
-            g = KK.smooth(f, ti)
-            panels.append(g)
-            titles.append(f"k = {kk}, t{i + 1}: ε∞ {KK.error(f, ti):.3f}, {count(g)} c.p.")
-    _save(_fields_up(up, (V, F), np.stack(panels, 1), titles=titles, ncols=4,
-                 suptitle=f"{name}: 10 vs {k} eigenpairs (Fig. 2)"), out / "fig2_eigenpairs.png")
-    entries.append(("fig2_eigenpairs.png", f"10 vs {k} eigenpairs at the first and last scale: more "
-                    "eigenfunctions, smaller ε∞ and more critical points"))
-    # Fig. 3: an irregular sampling; the Voronoi kernel (7) and the iterative scheme (8)
-    Vi, Fi = decimate((V, F), reduction=0.7).arrays
-    fi = transfer(f, (V, F), Vi)
-    ki = min(k, len(Vi) - 2)
-    Ki, Kv = heat_kernel((Vi, Fi), ki), heat_kernel((Vi, Fi), ki, variant="voronoi")
-    ti = Ki.scales()[4]
-    d1 = diffuse((Vi, Fi), fi, dt=ti / 10, steps=10, scheme="implicit")
-    d2 = diffuse((Vi, Fi), fi, dt=ti / 2, steps=10, scheme="implicit")
-    _save(_fields_up(up, (Vi, Fi), np.stack([fi, Kv.smooth(fi, Kv.scales()[4]), Ki.smooth(fi, ti), d1, d2], 1), ncols=5,
-                 titles=["f (irregular sampling)", "Voronoi kernel (7), t5", "weighted kernel, t5",
-                         "scheme (8), t5", "scheme (8), 5 t5"],
-                 suptitle=f"{name}: irregular sampling ({len(Vi)} vertices) (Figs. 3, 6)"),
-          out / "fig3_irregular.png")
-    entries.append(("fig3_irregular.png", "a curvature-adaptive decimation: the Voronoi kernel of eq. (7), "
-                    "the weighted kernel and the implicit time stepping of eq. (8) at two times"))
-    # Figs. 4-5: canonic basis functions, linear vs weighted kernel, on the irregular sampling
-    Kl = heat_kernel((Vi, Fi), ki, variant="linear")  # its own spectrum (L x = λ x) and its own scales
-    c = int(np.argmin(np.linalg.norm(Vi - Vi.mean(0) - [0, 0, np.ptp(Vi[:, 2]) / 2], axis=1)))
-    B = np.stack([Kl.canonic_basis(c, Kl.scales()[0]), Kl.canonic_basis(c, Kl.scales()[4]),
-                  Ki.canonic_basis(c, Ki.scales()[0]), Ki.canonic_basis(c, Ki.scales()[4])], 1)
-    _save(_fields_up(up, (Vi, Fi), B, ncols=4, shared_range=False, critical_points=True,
-                 titles=["linear kernel, t1", "linear kernel, t5", "weighted kernel, t1", "weighted kernel, t5"],
-                 suptitle=f"{name}: canonic basis Φ_t(e_i) on the irregular sampling (Figs. 4, 5)"),
-          out / "fig4_5_canonic.png")
-    entries.append(("fig4_5_canonic.png", "the canonic basis function of one vertex with the linear (B := I) and "
-                    "the weighted kernel, each at its own scales t1 and t5 (t_i = (i/10)/λ_k of its spectrum)"))
-    # Figs. 6-7: feature-driven approximation with all vs simplified critical points
-    d = persistence(S, f)
-    A_all = simplify_critical_points(S, f, diagram=d)
-    A_few = simplify_critical_points(S, f, keep_fraction=0.1, diagram=d)
-    ga, _ = feature_driven(K, f, A_all, t[0])
-    gf, _ = feature_driven(K, f, A_few, t[0])
-    pct = 100.0 * len(A_few) / max(len(A_all), 1)
-    _save(_fields_up(up, (V, F), np.stack([f, ga, gf], 1), ncols=3, shared_range=False,
-                 titles=["f", f"A = all {len(A_all)} critical points", f"A = δ-simplified ({pct:.0f}%)"],
-                 suptitle=f"{name}: feature-driven approximation Φ_t(pr_A f), t1 (Figs. 6, 7)"),
-          out / "fig6_7_feature.png")
-    entries.append(("fig6_7_feature.png", "the global component Φ_t(pr_A f) with A all the critical points of f "
-                    f"and A the most persistent ones (10% of the pairs, {pct:.0f}% of the points)"))
-    lines = [f"# o3dheat figures: {name}", "",
-             f"{len(V)} vertices, {len(F)} faces; k = {k}; field: "
-             + ("given attribute" if field is not None else f"height + {noise:g} noise (seed {seed})"), ""]
-    lines += [f"- `{fn}`: {text}" for fn, text in entries]
-    index = out / "index.md"
-    from .io import atomic_write_text
-
-    atomic_write_text(index, "\n".join(lines) + "\n")
-    return index
 
 
 def study(table, descriptor="hks_density", metric="rel_l2", title=None):
     """Discrepancy against the reference sampling vs scale, one line per kernel and one panel per
     resampling kind (averaged over meshes and resamplings of that kind), from
     :func:`o3dheat.robustness_study`.
+
+    Line panels share one logarithmic y range (the kinds compare at a glance) and put their
+    ticks on the integer scale indices; "eigenvalues" (scale 0 only) are bars on a linear axis
+    shared by all panels.
 
     Parameters
     ----------
@@ -429,35 +752,51 @@ def study(table, descriptor="hks_density", metric="rel_l2", title=None):
     Returns
     -------
     matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import pandas as pd, o3dheat.plot as plot
+    >>> rows = [dict(descriptor="hks_density", error="", kind=k, kernel=kern, scale=s, rel_l2=0.01 * s + e)
+    ...         for k in ("decimate", "jitter") for kern, e in (("weighted", 0.0), ("linear", 0.02))
+    ...         for s in range(1, 11)]
+    >>> fig = plot.study(pd.DataFrame(rows))
+    >>> [a.get_yscale() for a in fig.axes], fig.axes[0].get_ylim() == fig.axes[1].get_ylim()
+    (['log', 'log'], True)
     """
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
+
     if metric not in ("rel_l2", "rel_linf"):
         raise MeshError(f"metric must be 'rel_l2' or 'rel_linf', got {metric!r}")
     t = table[(table["descriptor"] == descriptor) & (table["error"].fillna("") == "")]
     if t.empty:
         raise MeshError(f"the table has no successful rows for descriptor {descriptor!r}")
     kinds = sorted(t["kind"].unique())
-    fig, axes = _figure(len(kinds), 1, 3.6, three_d=False)
+    fig = Figure(figsize=(3.6 * len(kinds) + 0.4, 3.8), dpi=100, layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(kinds), sharey=True))
     colors = {"weighted": "black", "linear": "tab:blue", "voronoi": "tab:orange", "lumped": "tab:green"}
     means = t.groupby(["kind", "kernel", "scale"])[metric].mean()
+    bars = bool((t["scale"] == 0).all())
     positive = means[means > 0]
-    lo, hi = (positive.min() / 1.5, positive.max() * 1.5) if len(positive) else (None, None)
     for ax, kind in zip(axes, kinds):
         mean = means.loc[kind].reset_index()
-        if (mean["scale"] == 0).all():
+        if bars:
             kernels = list(mean["kernel"])
             ax.bar(kernels, mean[metric], color=[colors.get(k, "gray") for k in kernels])
-            ax.set_ylim(0, means.max() * 1.1)  # bars on a linear axis, one range for all panels
+            ax.tick_params(axis="x", labelrotation=30, labelsize=8)
         else:
             for kern, g in mean.groupby("kernel"):
                 ax.plot(g["scale"], g[metric], "o-", color=colors.get(kern, "gray"), label=kern, ms=3)
             ax.set_xlabel("scale i (each kernel's own t_i)")
-            ax.set_xticks(sorted(mean["scale"].unique()))
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True, nbins=10))
             ax.legend(fontsize=8)
-            ax.set_yscale("log")
-            if lo is not None:
-                ax.set_ylim(lo, hi)  # one range for all panels: kinds compare at a glance
         ax.set_title(f"{kind}", fontsize=10)
-        ax.set_ylabel(f"{metric} of {descriptor}")
+    if bars:
+        axes[0].set_ylim(0, float(means.max()) * 1.1 if len(means) else 1.0)  # linear: bars start at 0
+    else:
+        axes[0].set_yscale("log")
+        if len(positive):
+            axes[0].set_ylim(positive.min() / 1.5, positive.max() * 1.5)  # one range for all panels
+    axes[0].set_ylabel(f"{metric} of {descriptor}")
     fig.suptitle(title or f"{descriptor}: discrepancy to the reference sampling", fontsize=11)
-    fig.tight_layout()
     return fig

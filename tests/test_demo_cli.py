@@ -179,11 +179,11 @@ def test_missing_output_folders_are_refused_before_any_work(tmp_path, sphere_ply
     """Every subcommand that writes a file refuses a folder that does not exist, and every one
     that writes into a folder refuses one it cannot create, before computing (exit status 2)."""
     import o3dheat.demo as demo
-    import o3dheat.plot as plot
+    import o3dheat.figures as figures
     import o3dheat.spectrum as spectrum
 
     monkeypatch.setattr(demo, "run", lambda **kw: pytest.fail("the demo ran"))
-    monkeypatch.setattr(plot, "paper_figures", lambda *a, **kw: pytest.fail("the figures were drawn"))
+    monkeypatch.setattr(figures, "paper_figures", lambda *a, **kw: pytest.fail("the figures were drawn"))
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **kw: pytest.fail("eigensolve called"))
     missing = tmp_path / "nonexistent_dir"
     a_file = tmp_path / "a_file"
@@ -207,7 +207,7 @@ def test_missing_output_folders_are_refused_before_any_work(tmp_path, sphere_ply
 
 
 def test_cli_figure_column(tmp_path, sphere_ply, capsys, monkeypatch):
-    import o3dheat.plot as plot
+    import o3dheat.figures as figures
     from o3dheat.io import write_mesh
 
     m = read_mesh(sphere_ply)
@@ -218,7 +218,7 @@ def test_cli_figure_column(tmp_path, sphere_ply, capsys, monkeypatch):
     p = tmp_path / "m.ply"
     write_mesh(p, m)
     seen = []
-    monkeypatch.setattr(plot, "paper_figures", lambda mesh, out, field=None, **kw: seen.append(field) or Path(out) / "index.md")
+    monkeypatch.setattr(figures, "paper_figures", lambda mesh, out, field=None, **kw: seen.append(field) or Path(out) / "index.md")
     figs = str(tmp_path / "figs")
     assert main(["figure", str(p), "-o", figs, "--attribute", "hks"]) == 2
     assert ("attribute 'hks' has 3 columns (0..2): pick one with --column N (0 is the first, -1 the last)"

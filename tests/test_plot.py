@@ -1,4 +1,5 @@
-"""Figures: written, not blank, headless (PAPER.md row P16)."""
+"""Drawing: real 3D renders (hidden surfaces removed, everything in frame), colorbars and legends,
+the matplotlib fallback, and the charts' axes (PAPER.md row P16)."""
 
 import numpy as np
 import pytest
@@ -6,6 +7,8 @@ from conftest import icosphere, torus
 
 import o3dheat
 import o3dheat.plot as plot
+
+needs_renderer = pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
 
 
 def not_blank(path):
@@ -16,43 +19,183 @@ def not_blank(path):
     return img.std() > 0.05 and ink > 0.02
 
 
-def test_field_with_level_sets_and_critical_points(tmp_path):
+def pixels(img, color):
+    """Pixels close to a pure colour ("red", "blue", "green"): the critical points' markers."""
+    r, g, b = (img[..., i].astype(int) for i in range(3))
+    return int({"red": (r > 120) & (g < 60) & (b < 60), "blue": (b > 120) & (r < 60) & (g < 60),
+                "green": (g > 60) & (r < 40) & (b < 40)}[color].sum())
+
+
+def ink(img):
+    return np.any(img < 250, axis=2)
+
+
+def legend_texts(fig):
+    return [t.get_text() for lg in fig.legends for t in lg.get_texts()]
+
+
+@needs_renderer
+def test_field_has_a_named_colorbar_and_a_legend(tmp_path):
     V, F = torus(1.0, 0.4, 40, 20)
-    f = V[:, 0] + 0.2 * np.random.default_rng(0).standard_normal(len(V))
-    fig = plot.field((V, F), f, level_sets=8, critical_points=True, title="noisy")
+    fig = plot.field((V, F), V[:, 0], level_sets=8, title="x on a torus", label="x coordinate")
+    assert fig.axes[1].get_ylabel() == "x coordinate"  # the colorbar
+    texts = legend_texts(fig)
+    assert texts == ["level sets (8)", "maxima (1)", "minima (1)", "saddles (2)"]
+    img = fig.axes[0].get_images()[0].get_array()
+    assert pixels(img, "red") and pixels(img, "green")  # the maximum and a saddle face the viewer
+    assert fig.axes[0].get_title() == "x on a torus"
     fig.savefig(tmp_path / "f.png")
     assert not_blank(tmp_path / "f.png")
-    ax = fig.axes[0]
-    colors = {tuple(np.round(c.get_facecolor()[0][:3], 2)) for c in ax.collections[2:]}
-    assert {(1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.0, 0.5, 0.0)} <= colors  # red max, blue min, green saddle
-    cp = o3dheat.critical_points((V, F), f)
-    fig = plot.field((V, F), f, level_sets=[0.0], critical_points=cp, up="y")
+    cp = o3dheat.critical_points((V, F), V[:, 0])
+    fig = plot.field((V, F), V[:, 0], level_sets=[0.0], critical_points=cp, up="y")
     fig.savefig(tmp_path / "g.png")
     assert not_blank(tmp_path / "g.png")
 
 
-def test_panels_and_scale_space(tmp_path):
+@needs_renderer
+def test_what_is_behind_the_surface_is_hidden():
+    """x on a sphere seen from +x: the maximum (+x) shows, the minimum (-x) is behind the sphere;
+    seen from -x the other way round. A level set on the far side leaves the picture unchanged."""
+    V, F = icosphere(3)
+    f = V[:, 0]
+    front = plot.render((V, F), f, level_sets=None, view=(0, 0), cmap="gray")
+    back = plot.render((V, F), f, level_sets=None, view=(0, 180), cmap="gray")
+    assert pixels(front, "red") > 20 and pixels(front, "blue") == 0
+    assert pixels(back, "blue") > 20 and pixels(back, "red") == 0
+    plain = plot.render((V, F), f, level_sets=None, critical_points=False, view=(0, 0))
+    far = plot.render((V, F), f, level_sets=[-0.7], critical_points=False, view=(0, 0))
+    near = plot.render((V, F), f, level_sets=[0.7], critical_points=False, view=(0, 0))
+    assert np.array_equal(plain, far)
+    dark = (near.max(axis=2) < 60) & ~(plain.max(axis=2) < 60)
+    assert dark.sum() > 100  # the near level set: a visible black ring
+
+
+def touches_border(img):
+    m = ink(img)
+    return m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any()
+
+
+@needs_renderer
+def test_every_part_in_frame():
+    """A mesh of two parts far apart, and pymeshlab's airplane (wide wings): everything is in the
+    picture, with a margin, and the picture is no larger than the geometry needs."""
+    from o3dheat.demo import sample_mesh
+
+    V1, F1 = icosphere(2)
+    V = np.r_[V1, V1 * 0.5 + [6.0, 0.0, 1.0]]
+    F = np.r_[F1, F1 + len(V1)]
+    img = plot.render((V, F), V[:, 2], view=(10, -90))
+    m = ink(img)
+    assert not touches_border(img)
+    cols = np.flatnonzero(m.any(axis=0))
+    assert cols[0] < 0.06 * m.shape[1] and cols[-1] > 0.94 * m.shape[1]  # tight left and right
+    assert m[:, : m.shape[1] // 3].any() and m[:, -m.shape[1] // 6:].any()  # both parts
+    plane = sample_mesh("airplane")
+    Vp = plane.vertex.positions.numpy()
+    img = plot.render(plane, Vp[:, 0], critical_points=False)
+    assert not touches_border(img) and ink(img).mean() > 0.1
+
+
+@needs_renderer
+def test_a_scan_far_from_the_origin_renders_the_same():
+    V, F = icosphere(3)
+    near = plot.render((V, F), V[:, 0])
+    far = plot.render((V + [3e6, -2e6, 1e6], F), V[:, 0])  # float32 has ~0.25 units of resolution there
+    assert near.shape == far.shape and np.abs(near.astype(int) - far).mean() < 1.0
+
+
+@needs_renderer
+def test_too_many_critical_points_are_not_drawn(monkeypatch):
+    V, F = icosphere(3)
+    f = V[:, 2] + 0.3 * np.random.default_rng(1).standard_normal(len(V))
+    n = sum(o3dheat.critical_points((V, F), f).counts)
+    monkeypatch.setattr(plot, "MAX_CRITICAL_POINTS", n - 1)
+    fig = plot.field((V, F), f, level_sets=None, cmap="gray")
+    img = fig.axes[0].get_images()[0].get_array()
+    assert pixels(img, "red") == 0 and pixels(img, "blue") == 0
+    assert f"{n:,} critical points: too many to draw" in [t.get_text() for t in fig.axes[0].texts]
+
+
+@needs_renderer
+def test_panels_share_a_colorbar_or_have_their_own(tmp_path):
     V, F = icosphere(3)
     f = V[:, 2] + 0.2 * np.random.default_rng(1).standard_normal(len(V))
     K = o3dheat.HeatKernel(o3dheat.eigensolve((V, F), k=60))
     ss = o3dheat.scale_space(K, f, stop="critical_points")
-    fig = plot.fields((V, F), ss.fields[:, :3], titles=["a", "b", "c"], suptitle="scales")
-    assert len(fig.axes) == 3
+    fig = plot.fields((V, F), ss.fields[:, :3], titles=["a", "b", "c"], suptitle="scales", label="Φ_t f")
+    assert len(fig.axes) == 4 and fig.axes[3].get_ylabel() == "Φ_t f"  # three pictures, one colorbar
+    assert fig.get_suptitle() == "scales" and [a.get_title() for a in fig.axes[:3]] == ["a", "b", "c"]
+    assert legend_texts(fig) == ["level sets (10)", "maxima", "minima", "saddles"]
     fig.savefig(tmp_path / "p.png")
     assert not_blank(tmp_path / "p.png")
-    fig = plot.scale_space(ss, title="Fig. 1c,d")
-    fig.savefig(tmp_path / "s.png")
-    assert not_blank(tmp_path / "s.png")
+    fig = plot.fields((V, F), ss.fields[:, :2], shared_range=False, critical_points=False, level_sets=None)
+    assert len(fig.axes) == 4 and not fig.legends  # one colorbar per panel, nothing to explain
+    with pytest.raises(o3dheat.MeshError, match="2 titles for 3 fields"):
+        plot.fields((V, F), ss.fields[:, :3], titles=["a", "b"])
 
 
-def test_paper_figures_for_a_mesh(tmp_path):
-    V, F = icosphere(3)
-    index = plot.paper_figures((V, F), tmp_path / "figs", k=40, name="sphere")
-    text = index.read_text()
-    pngs = sorted((tmp_path / "figs").glob("*.png"))
-    assert len(pngs) == 8
-    for p in pngs:
-        assert p.name in text and not_blank(p)
+def test_fallback_to_matplotlib_warns_and_still_draws(monkeypatch, tmp_path):
+    V, F = torus(1.0, 0.4, 24, 12)
+    monkeypatch.setitem(plot._state, "probe", (False, plot._MISSING + " (test)"))
+    monkeypatch.setitem(plot._state, "renderer", None)
+    monkeypatch.setitem(plot._state, "warned", False)
+    monkeypatch.delenv("O3DHEAT_RENDERER", raising=False)
+    with pytest.warns(RuntimeWarning, match="libvulkan1 and mesa-vulkan-drivers"):
+        fig = plot.field((V, F), V[:, 0], label="x")
+    assert fig.axes[0].name == "3d" and fig.axes[1].get_ylabel() == "x"
+    fig.savefig(tmp_path / "m.png")
+    assert not_blank(tmp_path / "m.png")
+    with pytest.raises(o3dheat.MeshError, match="renderer='matplotlib'"):
+        plot.field((V, F), V[:, 0], renderer="open3d")
+    with pytest.raises(o3dheat.MeshError, match="mesa-vulkan-drivers"):
+        plot.render((V, F), V[:, 0])
+
+
+def test_matplotlib_on_purpose_is_quiet(monkeypatch, recwarn):
+    V, F = torus(1.0, 0.4, 24, 12)
+    monkeypatch.setenv("O3DHEAT_RENDERER", "matplotlib")
+    fig = plot.fields((V, F), np.c_[V[:, 0], V[:, 1]], critical_points=False)
+    assert fig.axes[0].name == "3d" and not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+    monkeypatch.setenv("O3DHEAT_RENDERER", "vtk")
+    with pytest.raises(o3dheat.MeshError, match="O3DHEAT_RENDERER"):
+        plot.field((V, F), V[:, 0])
+
+
+def test_scale_space_ticks_sit_on_the_scales():
+    V, F = icosphere(2)
+    f = V[:, 2] + 0.2 * np.random.default_rng(1).standard_normal(len(V))
+    K = o3dheat.HeatKernel(o3dheat.eigensolve((V, F), k=30))
+    for grid in ("paper", "log"):
+        ss = o3dheat.scale_space(K, f, scales=K.scales(10, grid=grid))
+        fig = plot.scale_space(ss, title="Fig. 1c,d")
+        fig.canvas.draw()
+        for ax in fig.axes:
+            labels = [t.get_text() for t in ax.get_xticklabels() if t.get_text()]
+            assert 2 <= len(labels) <= 6 and not [t for t in ax.get_xticklabels(minor=True) if t.get_text()]
+        counts = fig.axes[1].get_yticks()
+        assert np.allclose(counts, np.round(counts))  # critical points are counted in whole numbers
+
+
+def study_table(descriptor, scales):
+    import pandas as pd
+
+    rows = [dict(descriptor=descriptor, error="", kind=k, kernel=kern, scale=s, rel_l2=(0.01 + 0.01 * s) * m)
+            for k, m in (("decimate", 1.0), ("jitter", 30.0)) for kern in ("weighted", "linear") for s in scales]
+    return pd.DataFrame(rows)
+
+
+def test_study_axes():
+    fig = plot.study(study_table("hks_density", range(1, 11)))
+    fig.canvas.draw()
+    a, b = fig.axes
+    assert a.get_yscale() == b.get_yscale() == "log" and a.get_ylim() == b.get_ylim()  # compared panels
+    ticks = a.get_xticks()
+    assert np.allclose(ticks, np.round(ticks))  # integer scales: no tick at 1.5
+    fig = plot.study(study_table("eigenvalues", [0]), descriptor="eigenvalues")
+    a, b = fig.axes
+    assert a.get_yscale() == b.get_yscale() == "linear" and a.get_ylim()[0] == 0  # bars never on a log axis
+    with pytest.raises(o3dheat.MeshError):
+        plot.study(study_table("hks_density", [1]), descriptor="nope")
 
 
 def test_bad_input():
@@ -63,5 +206,9 @@ def test_bad_input():
         plot.field((V, F), np.full(len(V), np.nan))
     with pytest.raises(o3dheat.MeshError):
         plot.field((V, F), V[:, 0], up="w")
+    with pytest.raises(o3dheat.MeshError):
+        plot.field((V, F), V[:, 0], renderer="vtk")
+    with pytest.raises(o3dheat.MeshError):
+        plot.field((V, F), V[:, 0], view="front")
     with pytest.raises(o3dheat.MeshError):
         plot.scale_space("not a scale space")

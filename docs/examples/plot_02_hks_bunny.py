@@ -28,7 +28,7 @@ print(H.shape, np.round(t, 4))
 # coloured on its own: at small ``t`` the HKS follows the local curvature (ear tips, feet, tail),
 # at large ``t`` it is highest at the ends of the ears, the parts farthest from the rest.
 fig = o3dheat.plot.fields(mesh, np.log(H), titles=[f"log HKS, t = {s:.2g}" for s in t],
-                          shared_range=False, level_sets=None, critical_points=False, ncols=2, up="y")
+                          shared_range=False, level_sets=None, critical_points=False, ncols=2, up="y", label="log HKS")
 
 # %%
 # The signature of a few vertices across scales

@@ -1,0 +1,222 @@
+"""Figure recipes: the kinds of the paper's figures for a mesh, and the study's plots, built from
+the library's pieces (:mod:`o3dheat.sampling`, :mod:`o3dheat.kernel`, :mod:`o3dheat.topology`, ...)
+and drawn by :mod:`o3dheat.plot`. Each recipe writes PNGs into a folder and says what they show.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import checks, plot
+from .io import atomic_write, atomic_write_text
+from .mesh import as_arrays
+
+__all__ = ["paper_figures", "study_figures"]
+
+
+def _panels(up, *args, **kwargs):
+    return plot.fields(*args, up=up, **kwargs)
+
+
+def _save(fig, path):
+    atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=100))
+
+
+def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", max_faces=30000, up="z"):
+    """The kinds of the paper's Figs. 1–7 for one mesh, as PNGs with an ``index.md``.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+        Meshes above ``max_faces`` faces are decimated first.
+    out : str or Path
+        Output folder (created).
+    field : (n,) array_like, optional
+        The field to study; default the height along the longest axis plus Gaussian noise.
+    k : int
+        Eigenpairs of the main spectrum (the comparisons use 10 and k).
+    noise : float
+        Noise standard deviation relative to the range of the height (default field only).
+    seed : int
+    name : str
+        Used in titles.
+    max_faces : int
+        Larger meshes are decimated to this many faces first (the eigensolves and critical points
+        of every panel dominate the time).
+    up : {"z", "y", "x"}
+        The axis drawn vertical.
+
+    Returns
+    -------
+    pathlib.Path
+        The ``index.md`` written in ``out``.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib, open3d as o3d, o3dheat.figures as figures
+    >>> out = pathlib.Path(tempfile.mkdtemp())
+    >>> sphere = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)
+    >>> index = figures.paper_figures(sphere, out, k=12)  # doctest: +SKIP
+    >>> len(list(out.glob("*.png"))), index.name  # doctest: +SKIP
+    (8, 'index.md')
+
+    (Skipped in the test run, which draws them in ``tests/test_figures.py``: eight figures take
+    a few seconds.)
+    """
+    from pathlib import Path
+
+    from .approximation import feature_driven
+    from .approximation import scale_space as hierarchy
+    from .diffusion import diffuse
+    from .kernel import HeatKernel, heat_kernel
+    from .mesh import prepare
+    from .sampling import decimate, transfer
+    from .spectrum import eigensolve
+    from .topology import Surface, critical_points, persistence, simplify_critical_points
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    V0, F0 = as_arrays(mesh)
+    if field is None:
+        axis = int(np.argmax(np.ptp(V0, axis=0)))
+        h = V0[:, axis]
+        f0 = h + noise * np.ptp(h) * np.random.default_rng(seed).standard_normal(len(V0))
+    else:
+        f0 = checks.field(np.asarray(checks.values(field), dtype=np.float64).reshape(len(V0), -1)[:, 0], len(V0),
+                          "the field")
+    prep = prepare((V0, F0))
+    V, F, f = prep.V, prep.F, prep.restrict(f0)
+    if len(F) > max_faces:
+        Vd, Fd = decimate((V, F), target_faces=max_faces).arrays
+        f, V, F = transfer(f, (V, F), Vd), Vd, Fd
+    k = min(k, len(V) - 2)
+    K = HeatKernel(eigensolve((V, F), k=k))
+    K10 = HeatKernel(eigensolve((V, F), k=min(10, k)))
+    t = K.scales()
+    entries = []
+
+    S = Surface.from_faces(len(V), F, V)
+
+    def count(g):
+        return sum(critical_points(S, g).counts)
+
+    # Fig. 1: level sets and critical points across scales, and their variation
+    ss = hierarchy(K, f, stop="linf")
+    cols = [0, 4, 9]
+    titles = [f"f ({count(f)} critical points)"] + [
+        f"Φ_t f, t = t{i + 1} ({ss.critical_counts[i].sum()} c.p., ε∞ {ss.errors[i]:.3f})" for i in cols]
+    _save(_panels(up, (V, F), np.c_[f, ss.fields[:, cols]], titles=titles, ncols=4, label="f, Φ_t f",
+                 suptitle=f"{name}: multi-scale approximation, k = {k} (Fig. 1e-k)"), out / "fig1_scales.png")
+    _save(plot.scale_space(ss, title=f"{name}: variation and critical points vs t (Fig. 1c,d)"), out / "fig1_variation.png")
+    entries += [("fig1_scales.png", "the field and Φ_t f at the paper's scales t1, t5, t10 with level sets and "
+                 "critical points (red maxima, blue minima, green saddles)"),
+                ("fig1_variation.png", "‖Φ_{t_{i+1}} f − Φ_{t_i} f‖∞, ε∞ and the number of critical points "
+                 "against t; the l∞ stop criterion (tolerance 1e-3 ‖f‖∞) "
+                 + (f"holds at scale {ss.stop_index + 1}" if ss.stopped else "holds at none of the scales"))]
+    # the same on the log grid (1/λ_k .. 2 ln(100)/λ_2): the whole multi-scale range
+    sl = hierarchy(K, f, scales=K.scales(10, grid="log"))
+    titles = [f"f ({count(f)} critical points)"] + [
+        f"Φ_t f, log t{i + 1} = {sl.scales[i]:.3g} ({sl.critical_counts[i].sum()} c.p.)" for i in cols]
+    _save(_panels(up, (V, F), np.c_[f, sl.fields[:, cols]], titles=titles, ncols=4, label="f, Φ_t f",
+                 suptitle=f"{name}: Φ_t f on the log grid 1/λ_k .. 2 ln(100)/λ_2, k = {k}"),
+          out / "fig1_log_scales.png")
+    _save(plot.scale_space(sl, title=f"{name}: variation and critical points vs t, log grid"),
+          out / "fig1_log_variation.png")
+    entries += [("fig1_log_scales.png", "the field and Φ_t f at t1, t5, t10 of the log grid, from 1/λ_k (what k "
+                 "eigenpairs resolve) to 2 ln(100)/λ_2 (nearly constant): critical points "
+                 f"{sl.critical_counts[0].sum()} -> {sl.critical_counts[-1].sum()}"),
+                ("fig1_log_variation.png", "variation, ε∞ and critical points against t on the log grid")]
+    # Fig. 2: 10 vs k eigenpairs at two scales
+    panels, titles = [], []
+    for KK, kk in ((K10, K10.spectrum.k), (K, k)):
+        for i in (0, 9):
+            ti = KK.scales()[i]
+            g = KK.smooth(f, ti)
+            panels.append(g)
+            titles.append(f"k = {kk}, t{i + 1}: ε∞ {KK.error(f, ti):.3f}, {count(g)} c.p.")
+    _save(_panels(up, (V, F), np.stack(panels, 1), titles=titles, ncols=4, label="Φ_t f",
+                 suptitle=f"{name}: 10 vs {k} eigenpairs (Fig. 2)"), out / "fig2_eigenpairs.png")
+    entries.append(("fig2_eigenpairs.png", f"10 vs {k} eigenpairs at the first and last scale: more "
+                    "eigenfunctions, smaller ε∞ and more critical points"))
+    # Fig. 3: an irregular sampling; the Voronoi kernel (7) and the iterative scheme (8)
+    Vi, Fi = decimate((V, F), reduction=0.7).arrays
+    fi = transfer(f, (V, F), Vi)
+    ki = min(k, len(Vi) - 2)
+    Ki, Kv = heat_kernel((Vi, Fi), ki), heat_kernel((Vi, Fi), ki, variant="voronoi")
+    ti = Ki.scales()[4]
+    d1 = diffuse((Vi, Fi), fi, dt=ti / 10, steps=10, scheme="implicit")
+    d2 = diffuse((Vi, Fi), fi, dt=ti / 2, steps=10, scheme="implicit")
+    _save(_panels(up, (Vi, Fi), np.stack([fi, Kv.smooth(fi, Kv.scales()[4]), Ki.smooth(fi, ti), d1, d2], 1), ncols=5,
+                 label="f, Φ_t f",
+                 titles=["f (irregular sampling)", "Voronoi kernel (7), t5", "weighted kernel, t5",
+                         "scheme (8), t5", "scheme (8), 5 t5"],
+                 suptitle=f"{name}: irregular sampling ({len(Vi)} vertices) (Figs. 3, 6)"),
+          out / "fig3_irregular.png")
+    entries.append(("fig3_irregular.png", "a curvature-adaptive decimation: the Voronoi kernel of eq. (7), "
+                    "the weighted kernel and the implicit time stepping of eq. (8) at two times"))
+    # Figs. 4-5: canonic basis functions, linear vs weighted kernel, on the irregular sampling
+    Kl = heat_kernel((Vi, Fi), ki, variant="linear")  # its own spectrum (L x = λ x) and its own scales
+    c = int(np.argmin(np.linalg.norm(Vi - Vi.mean(0) - [0, 0, np.ptp(Vi[:, 2]) / 2], axis=1)))
+    B = np.stack([Kl.canonic_basis(c, Kl.scales()[0]), Kl.canonic_basis(c, Kl.scales()[4]),
+                  Ki.canonic_basis(c, Ki.scales()[0]), Ki.canonic_basis(c, Ki.scales()[4])], 1)
+    _save(_panels(up, (Vi, Fi), B, ncols=4, shared_range=False, critical_points=True, label="Φ_t(e_i)",
+                 titles=["linear kernel, t1", "linear kernel, t5", "weighted kernel, t1", "weighted kernel, t5"],
+                 suptitle=f"{name}: canonic basis Φ_t(e_i) on the irregular sampling (Figs. 4, 5)"),
+          out / "fig4_5_canonic.png")
+    entries.append(("fig4_5_canonic.png", "the canonic basis function of one vertex with the linear (B := I) and "
+                    "the weighted kernel, each at its own scales t1 and t5 (t_i = (i/10)/λ_k of its spectrum)"))
+    # Figs. 6-7: feature-driven approximation with all vs simplified critical points
+    d = persistence(S, f)
+    A_all = simplify_critical_points(S, f, diagram=d)
+    A_few = simplify_critical_points(S, f, keep_fraction=0.1, diagram=d)
+    ga, _ = feature_driven(K, f, A_all, t[0])
+    gf, _ = feature_driven(K, f, A_few, t[0])
+    pct = 100.0 * len(A_few) / max(len(A_all), 1)
+    _save(_panels(up, (V, F), np.stack([f, ga, gf], 1), ncols=3, shared_range=False, label="f, Φ_t(pr_A f)",
+                 titles=["f", f"A = all {len(A_all)} critical points", f"A = δ-simplified ({pct:.0f}%)"],
+                 suptitle=f"{name}: feature-driven approximation Φ_t(pr_A f), t1 (Figs. 6, 7)"),
+          out / "fig6_7_feature.png")
+    entries.append(("fig6_7_feature.png", "the global component Φ_t(pr_A f) with A all the critical points of f "
+                    f"and A the most persistent ones (10% of the pairs, {pct:.0f}% of the points)"))
+    lines = [f"# o3dheat figures: {name}", "",
+             f"{len(V)} vertices, {len(F)} faces; k = {k}; field: "
+             + ("given attribute" if field is not None else f"height + {noise:g} noise (seed {seed})"), ""]
+    lines += [f"- `{fn}`: {text}" for fn, text in entries]
+    index = out / "index.md"
+    atomic_write_text(index, "\n".join(lines) + "\n")
+    return index
+
+
+def study_figures(table, out):
+    """One plot per descriptor of a robustness study (:func:`o3dheat.plot.study`), as
+    ``study_<descriptor>.png`` in ``out``.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        From :func:`o3dheat.robustness_study`; failed rows are left out.
+    out : str or Path
+        An existing folder.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The PNGs written (none when no task succeeded).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib, pandas as pd, o3dheat.figures as figures
+    >>> rows = [dict(descriptor="hks_density", error="", kind="jitter", kernel="weighted", scale=s, rel_l2=0.01 * s)
+    ...         for s in range(1, 11)]
+    >>> [p.name for p in figures.study_figures(pd.DataFrame(rows), tempfile.mkdtemp())]
+    ['study_hks_density.png']
+    """
+    from pathlib import Path
+
+    ok = table[table["error"].fillna("") == ""]
+    written = []
+    for d in sorted(ok["descriptor"].unique()):
+        path = Path(out) / f"study_{d}.png"
+        _save(plot.study(table, descriptor=d), path)
+        written.append(path)
+    return written
