@@ -431,7 +431,7 @@ def _figure(args):
 
 
 def _study(args):
-    from .plot import study as plot_study
+    from .figures import study_figures
     from .study import load_config, robustness_study
 
     out = Path(args.out)
@@ -441,13 +441,7 @@ def _study(args):
     table = robustness_study(out=out, scheduler=args.scheduler, **kw)
     ok = table[table["error"].fillna("") == ""]
     failed = table[table["error"].fillna("") != ""]
-    written = []
-    for d in sorted(ok["descriptor"].unique()):
-        fig = plot_study(table, descriptor=d)
-        from .io import atomic_write
-
-        atomic_write(out / f"study_{d}.png", lambda fh, fig=fig: fig.savefig(fh, format="png", dpi=100))
-        written.append(f"study_{d}.png")
+    written = study_figures(table, out)
     if len(ok):
         summary = ok.groupby(["descriptor", "kernel"])["rel_l2"].median().unstack("kernel")
         print(f"median relative L2 discrepancy to the reference sampling ({len(ok)} rows):")
