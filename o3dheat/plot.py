@@ -22,6 +22,7 @@ one thread at a time.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import sys
 import threading
@@ -405,12 +406,30 @@ def _field_values(f, n):
     return checks.field(f, n, "the field")
 
 
-def _surface(V, F, level_sets, critical_points):
-    """The checked surface, built once per mesh, when level sets or critical points are drawn."""
+def _surface(V, F, values, level_sets, critical_points):
+    """``(S, V, F, values)``: the checked surface, built once per mesh, when level sets or critical
+    points are drawn (else None). A mesh that is not a 2-manifold (a scan with non-manifold edges
+    or vertices) is drawn as :func:`o3dheat.repair` makes it, with a warning: the same surface,
+    each fan of faces with its own copy of a shared vertex (the copy keeps the vertex's value)."""
     from .topology import Surface
 
     wanted = (level_sets is not None and level_sets is not False) or critical_points is True
-    return Surface.from_faces(len(V), F, V) if wanted else None
+    if not wanted:
+        return None, V, F, values
+    try:
+        return Surface.from_faces(len(V), F, V), V, F, values
+    except MeshError as e:
+        if "manifold" not in str(e):
+            raise
+        from .mesh import as_arrays as arrays
+        from .mesh import repair
+
+        r = repair((V, F), orient=False)
+        V2, F2 = arrays(r.mesh)
+        logging.getLogger("o3dheat").warning(
+            "%s: level sets and critical points are drawn on the mesh as o3dheat.repair makes it (%s)",
+            str(e).split(":")[0], r)
+        return Surface.from_faces(len(V2), F2, V2), V2, F2, values[r.source]
 
 
 def _range(values):
@@ -456,7 +475,13 @@ def _legend(fig, panels, counts):
             handles.append(Line2D([], [], ls="", marker="o", ms=6, color=color, markeredgecolor="white",
                                   label=label))
     if handles:
-        fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=8, frameon=False,
+        # one row when it fits the figure's width (about 0.065 inch per character at 8 points, plus
+        # the marker and the spacing), else as many rows as needed (a narrow mesh's single figure)
+        widths = [0.065 * len(h.get_label()) + 0.45 for h in handles]
+        ncols = len(handles)
+        while ncols > 1 and max(sum(widths[i:i + ncols]) for i in range(0, len(widths), ncols)) > fig.get_figwidth() - 0.2:
+            ncols -= 1
+        fig.legend(handles=handles, loc="outside lower center", ncols=ncols, fontsize=8, frameon=False,
                    handletextpad=0.3, columnspacing=1.2)
 
 
@@ -472,9 +497,9 @@ def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cma
         ncols = checks.count(ncols, "ncols")
     ncols = min(ncols or min(T, 5), T)
     nrows = -(-T // ncols)
+    S, V, F, values = _surface(V, F, values, level_sets, critical_points)
     frame = _View(V, view)
     r = _renderer(renderer)
-    S = _surface(V, F, level_sets, critical_points)
     ranges = [_range(values)] * T if shared_range else [_range(values[:, i]) for i in range(T)]
     span = (values.min(), values.max()) if shared_range else None
     panels = [_Panel(V, F, values[:, i], *ranges[i], cmap, level_sets, critical_points, S, span) for i in range(T)]
@@ -610,6 +635,8 @@ def fields(mesh, F_values, titles=None, ncols=None, level_sets=10, critical_poin
     if G.ndim == 1:
         G = G[:, None]
     G = _field_values(G, len(V))
+    if G.shape[1] == 0:
+        raise MeshError("no field to draw: F_values has 0 columns")
     return _compose(V, Fc, G, titles, ncols, level_sets, critical_points, view, cmap, shared_range, size,
                     suptitle, up, label, renderer, single=False)
 
@@ -647,9 +674,10 @@ def render(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cma
     f = _field_values(f, len(V))
     V = _upright(V, up)
     lo, hi = _range(f) if vrange is None else (float(vrange[0]), float(vrange[1]))
+    S, V, F, f = _surface(V, F, f, level_sets, critical_points)
     frame = _View(V, view)
     r = _renderer("open3d")
-    panel = _Panel(V, F, f, lo, hi, cmap, level_sets, critical_points, _surface(V, F, level_sets, critical_points))
+    panel = _Panel(V, F, f, lo, hi, cmap, level_sets, critical_points, S)
     return panel.render(r, frame, _vertex_normals(V, F))
 
 

@@ -212,3 +212,34 @@ def test_bad_input():
         plot.field((V, F), V[:, 0], view="front")
     with pytest.raises(o3dheat.MeshError):
         plot.scale_space("not a scale space")
+    with pytest.raises(o3dheat.MeshError, match="0 columns"):
+        plot.fields((V, F), np.zeros((len(V), 0)))
+
+
+def test_a_non_manifold_scan_is_drawn_repaired_with_a_warning(caplog):
+    """Two spheres glued at one vertex (a bowtie vertex): topology needs a 2-manifold, so the
+    figure is drawn on o3dheat.repair's result (the same surface), and says so."""
+    V, F = icosphere(2)
+    top = int(np.argmax(V[:, 2]))
+    V2 = V * [1, 1, -1] + [0, 0, 2 * V[top, 2]]  # mirrored: its bottom vertex on the first's top
+    bottom = int(np.argmin(V2[:, 2]))
+    keep = np.arange(len(V2)) != bottom
+    index = np.full(len(V2), -1)
+    index[keep] = len(V) + np.arange(keep.sum())
+    index[bottom] = top
+    VV, FF = np.vstack([V, V2[keep]]), np.vstack([F, index[F[:, ::-1]]])
+    assert o3dheat.check_mesh((VV, FF)).non_manifold_vertices == 1
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        fig = plot.field((VV, FF), VV[:, 2], renderer="matplotlib" if not plot.renderer_available()[0] else "auto")
+    assert "o3dheat.repair" in caplog.text and "non-manifold" in caplog.text
+    assert any(t.startswith("maxima") for t in legend_texts(fig))
+
+
+@needs_renderer
+def test_the_legend_fits_a_narrow_figure():
+    V, F = icosphere(3)
+    V = V * [0.2, 0.2, 1.0]  # tall and thin: a narrow single figure
+    fig = plot.field((V, F), V[:, 2] + 0.05 * np.sin(9 * V[:, 0]), label="a long field name")
+    fig.canvas.draw()
+    box = fig.legends[0].get_window_extent()
+    assert box.x0 >= 0 and box.x1 <= fig.bbox.width
