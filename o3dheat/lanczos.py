@@ -107,7 +107,7 @@ def _row_block(M, a, z):
 
 class _Rows:
     """Row-parallel kernels over the n rows of the basis (:func:`o3dheat.parallel.run` on fixed
-    parts of ``CHUNK`` rows; the reductions add the parts in order: thread-count independent)."""
+    parts of at most ``CHUNK`` rows, which depend on n only; the reductions add the parts in order: thread-count independent)."""
 
     def __init__(self, *mats):
         self.n = mats[0].shape[0]
