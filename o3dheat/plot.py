@@ -765,8 +765,11 @@ def study(table, descriptor="hks_density", metric="rel_l2", title=None):
     :func:`o3dheat.robustness_study`.
 
     Line panels share one logarithmic y range (the kinds compare at a glance) and put their
-    ticks on the integer scale indices; "eigenvalues" (scale 0 only) are bars on a linear axis
-    shared by all panels.
+    ticks on the integer scale indices; when some discrepancies are exactly 0 the axis is
+    "symlog" (0 at the bottom, linear up to the decade of the smallest non-zero value) so that
+    they stay on the chart. "eigenvalues" (scale 0 only) are bars on a linear axis shared by all
+    panels. Kernels are coloured in the order of :data:`o3dheat.kernel.VARIANTS` (the paper's
+    weighted kernel black).
 
     Parameters
     ----------
@@ -802,7 +805,10 @@ def study(table, descriptor="hks_density", metric="rel_l2", title=None):
     kinds = sorted(t["kind"].unique())
     fig = Figure(figsize=(3.6 * len(kinds) + 0.4, 3.8), dpi=100, layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(kinds), sharey=True))
-    colors = {"weighted": "black", "linear": "tab:blue", "voronoi": "tab:orange", "lumped": "tab:green"}
+    from .kernel import VARIANTS
+
+    # the paper's kernel black, the others in matplotlib's cycle, in the order of kernel.VARIANTS
+    colors = {v: "black" if i == 0 else f"C{i - 1}" for i, v in enumerate(VARIANTS)}
     means = t.groupby(["kind", "kernel", "scale"])[metric].mean()
     bars = bool((t["scale"] == 0).all())
     positive = means[means > 0]
@@ -817,14 +823,24 @@ def study(table, descriptor="hks_density", metric="rel_l2", title=None):
                 ax.plot(g["scale"], g[metric], "o-", color=colors.get(kern, "gray"), label=kern, ms=3)
             ax.set_xlabel("scale i (each kernel's own t_i)")
             ax.xaxis.set_major_locator(MaxNLocator(integer=True, nbins=10))
-            ax.legend(fontsize=8)
         ax.set_title(f"{kind}", fontsize=10)
     if bars:
         axes[0].set_ylim(0, float(means.max()) * 1.1 if len(means) else 1.0)  # linear: bars start at 0
+    elif len(positive) < len(means.dropna()) and len(positive):
+        # some discrepancies are exactly 0 (e.g. the same number of critical points): a log axis
+        # would drop them off the chart; symlog shows them at 0, linear up to the smallest non-zero
+        # value's decade, logarithmic above
+        lt = 10.0 ** np.floor(np.log10(positive.min()))
+        axes[0].set_yscale("symlog", linthresh=lt, linscale=0.4)
+        axes[0].set_ylim(0, positive.max() * 1.5)
     else:
         axes[0].set_yscale("log")
         if len(positive):
             axes[0].set_ylim(positive.min() / 1.5, positive.max() * 1.5)  # one range for all panels
+    if not bars:  # one legend for every panel, below them: a legend inside would hide points
+        handles = {h.get_label(): h for ax in axes for h in ax.get_lines()}
+        fig.legend(handles=list(handles.values()), loc="outside lower center", ncols=len(handles), fontsize=8,
+                   frameon=False)
     axes[0].set_ylabel(f"{metric} of {descriptor}")
     fig.suptitle(title or f"{descriptor}: discrepancy to the reference sampling", fontsize=11)
     return fig

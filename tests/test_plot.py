@@ -198,6 +198,21 @@ def test_study_axes():
         plot.study(study_table("hks_density", [1]), descriptor="nope")
 
 
+
+def test_study_keeps_zero_discrepancies_on_the_chart():
+    """Equal critical-point counts give a discrepancy of exactly 0: a log axis would drop those
+    points off the chart; the axis becomes symlog and the points sit at 0, in view."""
+    t = study_table("critical_points", range(1, 11))
+    t.loc[(t["kernel"] == "weighted") & (t["scale"] <= 3), "rel_l2"] = 0.0
+    fig = plot.study(t, descriptor="critical_points")
+    fig.canvas.draw()
+    a = fig.axes[0]
+    assert a.get_yscale() == "symlog" and a.get_ylim()[0] == 0
+    y = [line.get_ydata() for line in a.get_lines() if line.get_label() == "weighted"][0]
+    assert (np.asarray(y) == 0).sum() == 3
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["linear", "weighted"]  # one legend, below
+    assert all(ax.get_legend() is None for ax in fig.axes)
+
 def test_bad_input():
     V, F = icosphere(1)
     with pytest.raises(o3dheat.MeshError):
