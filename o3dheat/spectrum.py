@@ -179,10 +179,15 @@ def cache_max_bytes():
     >>> "O3DHEAT_CACHE_MAX_MB" in os.environ or s.cache_max_bytes() == 2048 * 2**20
     True
     """
+    return _megabytes("O3DHEAT_CACHE_MAX_MB", 2048)
+
+
+def _megabytes(variable, default):
+    """Bytes of the environment variable ``variable`` (megabytes), else of ``default``."""
     try:
-        return int(float(os.environ.get("O3DHEAT_CACHE_MAX_MB", "2048")) * 2**20)
+        return int(float(os.environ.get(variable, str(default))) * 2**20)
     except ValueError:
-        raise MeshError(f"O3DHEAT_CACHE_MAX_MB must be a number, got {os.environ['O3DHEAT_CACHE_MAX_MB']!r}") from None
+        raise MeshError(f"{variable} must be a number, got {os.environ[variable]!r}") from None
 
 
 # ------------------------------------------------------------------ the in-memory cache (shared)
@@ -207,11 +212,7 @@ def memory_cache_max_bytes():
     >>> "O3DHEAT_MEMORY_CACHE_MB" in os.environ or s.memory_cache_max_bytes() == 1024 * 2**20
     True
     """
-    try:
-        return int(float(os.environ.get("O3DHEAT_MEMORY_CACHE_MB", "1024")) * 2**20)
-    except ValueError:
-        raise MeshError("O3DHEAT_MEMORY_CACHE_MB must be a number, got "
-                        f"{os.environ['O3DHEAT_MEMORY_CACHE_MB']!r}") from None
+    return _megabytes("O3DHEAT_MEMORY_CACHE_MB", 1024)
 
 
 def _nbytes(value):
