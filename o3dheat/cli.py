@@ -424,9 +424,15 @@ def _figure(args):
             raise MeshError(f"no vertex attribute {args.attribute!r}; the mesh has: "
                             f"{', '.join(k for k in mesh.vertex)}")
         field = one_column(mesh.vertex[args.attribute].numpy(), args.attribute, args.column, option="--column ")
+    created = not out.exists()
     _output_folder(out, "-o")
-    index = paper_figures(mesh, args.out, field=field, k=args.k, noise=args.noise, seed=args.seed,
-                          name=Path(args.input).stem, up=args.up)
+    try:
+        index = paper_figures(mesh, args.out, field=field, k=args.k, noise=args.noise, seed=args.seed,
+                              name=Path(args.input).stem, up=args.up)
+    except BaseException:
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()  # no empty folder left behind by a failed run
+        raise
     print(f"wrote {index} and its figures")
 
 

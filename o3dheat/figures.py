@@ -5,11 +5,14 @@ and drawn by :mod:`o3dheat.plot`. Each recipe writes PNGs into a folder and says
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from . import checks, plot
+from .errors import MeshError
 from .io import atomic_write, atomic_write_text
-from .mesh import as_arrays
+from .mesh import as_arrays, check_mesh
 
 __all__ = ["paper_figures", "study_figures"]
 
@@ -75,15 +78,26 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     from .topology import Surface, critical_points, persistence, simplify_critical_points
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     V0, F0 = as_arrays(mesh)
     if field is None:
         axis = int(np.argmax(np.ptp(V0, axis=0)))
         h = V0[:, axis]
         f0 = h + noise * np.ptp(h) * np.random.default_rng(seed).standard_normal(len(V0))
     else:
-        f0 = checks.field(np.asarray(checks.values(field), dtype=np.float64).reshape(len(V0), -1)[:, 0], len(V0),
-                          "the field")
+        f0 = checks.field(field, len(V0), "the field")
+        if f0.ndim != 1:
+            raise MeshError(f"the field must have one value per vertex, shape ({len(V0)},), got {f0.shape}: "
+                            "pick a column")
+    report = check_mesh((V0, F0))
+    if report.non_manifold_edges or report.non_manifold_vertices:  # as plot draws them: repaired, said
+        from .mesh import repair
+
+        r = repair((V0, F0), orient=False)
+        logging.getLogger("o3dheat").warning(
+            "%d non-manifold edges and %d non-manifold vertices: the figures are made on the mesh as "
+            "o3dheat.repair makes it (%s)", report.non_manifold_edges, report.non_manifold_vertices, r)
+        (V0, F0), f0 = as_arrays(r.mesh), f0[r.source]
+    out.mkdir(parents=True, exist_ok=True)
     prep = prepare((V0, F0))
     V, F, f = prep.V, prep.F, prep.restrict(f0)
     if len(F) > max_faces:

@@ -423,8 +423,10 @@ def parse_value(text, tp):
     if origin in (tuple, list):
         item = args[0] if args else str
         return tuple(parse_value(t, item) for t in re.split(r";|(?<![0-9.][eE])\+", text) if t.strip())
-    if origin is typing.Literal:
-        return text
+    if origin is typing.Literal:  # a choice written as text: "none" is None when None is a choice
+        if low in ("none", "null") and None in args:
+            return None
+        return next((a for a in args if not isinstance(a, str) and str(a).lower() == low), text)
     if tp is bool:
         if low in ("true", "yes", "1", "on"):
             return True

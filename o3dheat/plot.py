@@ -297,7 +297,7 @@ class _Panel:
         self.segments = np.zeros((0, 2, 3))
         if level_sets is not None and level_sets is not False:
             if np.isscalar(level_sets):
-                count = checks.count(int(level_sets), "level_sets", maximum=1000)
+                count = checks.count(level_sets, "level_sets", maximum=1000)  # 2.5 is refused, not cut
                 a, b = span if span is not None else (f.min(), f.max())  # panels compared: the same values
                 self.levels = np.linspace(a, b, count + 2)[1:-1] if b > a else np.zeros(0)
             else:
@@ -432,6 +432,40 @@ def _surface(V, F, values, level_sets, critical_points):
         return Surface.from_faces(len(V2), F2, V2), V2, F2, values[r.source]
 
 
+def _oriented(V, F):
+    """F with every component's faces wound consistently (Open3D's ``orient_triangles``) and each
+    closed component's normals outward (positive signed volume): the drawing's shading, level-set
+    lifting and the matplotlib fallback's hidden points all read vertex normals, which an
+    inward or mixed winding (common in OBJ/STL exports) would turn around or cancel. A mesh with
+    non-manifold edges is returned as it is."""
+    import open3d as o3d
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    F = np.asarray(F, dtype=np.int64)
+    if len(F) == 0:
+        return F
+    legacy = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F.astype(np.int32)))
+    if not legacy.is_edge_manifold(allow_boundary_edges=True):
+        return F
+    if legacy.orient_triangles():
+        F = np.asarray(legacy.triangles, dtype=np.int64)
+    n = len(V)
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    _, label = connected_components(coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n)), directed=False)
+    face = label[F[:, 0]]
+    c = V.mean(axis=0)
+    volume = np.einsum("ij,ij->i", V[F[:, 0]] - c, np.cross(V[F[:, 1]] - c, V[F[:, 2]] - c))
+    undirected = np.sort(E, axis=1)
+    _, inverse, counts = np.unique(undirected[:, 0] * n + undirected[:, 1], return_inverse=True, return_counts=True)
+    open_component = np.zeros(label.max() + 1, bool)
+    open_component[face[np.flatnonzero(counts[inverse] == 1) % len(F)]] = True
+    flip = (np.bincount(face, weights=volume, minlength=len(open_component)) < 0) & ~open_component
+    if flip.any():
+        F = np.where(flip[face][:, None], F[:, ::-1], F)
+    return F
+
+
 def _range(values):
     lo, hi = np.percentile(values, [2, 98])
     if not hi > lo:
@@ -485,10 +519,21 @@ def _legend(fig, panels, counts):
                    handletextpad=0.3, columnspacing=1.2)
 
 
+def _check_style(cmap, size=1.0):
+    """A matplotlib colormap name and a positive size, or a MeshError naming them."""
+    from matplotlib import colormaps
+
+    if not isinstance(cmap, str) or cmap not in colormaps:
+        raise MeshError(f"cmap must be the name of a matplotlib colormap (e.g. 'coolwarm', 'viridis'), got {cmap!r}")
+    if isinstance(size, bool) or not isinstance(size, (int, float, np.integer, np.floating)) or not 0 < size <= 100:
+        raise MeshError(f"size must be a number of inches in (0, 100], got {size!r}")
+
+
 def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cmap, shared_range, size,
              suptitle, up, label, renderer, single):
     from matplotlib.figure import Figure  # no pyplot: no GUI backend, no global state
 
+    _check_style(cmap, size)
     V = _upright(V, up)
     T = values.shape[1]
     if titles is not None and len(titles) != T:
@@ -498,6 +543,7 @@ def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cma
     ncols = min(ncols or min(T, 5), T)
     nrows = -(-T // ncols)
     S, V, F, values = _surface(V, F, values, level_sets, critical_points)
+    F = _oriented(V, F)
     frame = _View(V, view)
     r = _renderer(renderer)
     ranges = [_range(values)] * T if shared_range else [_range(values[:, i]) for i in range(T)]
@@ -673,8 +719,17 @@ def render(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cma
     V, F = as_arrays(mesh)
     f = _field_values(f, len(V))
     V = _upright(V, up)
-    lo, hi = _range(f) if vrange is None else (float(vrange[0]), float(vrange[1]))
+    if vrange is not None:
+        try:
+            vr = np.asarray(checks.values(vrange), dtype=np.float64).ravel()
+        except (TypeError, ValueError):
+            vr = np.zeros(0)
+        if len(vr) != 2 or not np.all(np.isfinite(vr)) or not vr[0] < vr[1]:
+            raise MeshError(f"vrange must be two finite numbers (low, high), low < high, got {vrange!r}")
+    lo, hi = _range(f) if vrange is None else (float(vr[0]), float(vr[1]))
+    _check_style(cmap)
     S, V, F, f = _surface(V, F, f, level_sets, critical_points)
+    F = _oriented(V, F)
     frame = _View(V, view)
     r = _renderer("open3d")
     panel = _Panel(V, F, f, lo, hi, cmap, level_sets, critical_points, S)
@@ -826,7 +881,9 @@ def study(table, descriptor="hks_density", metric="rel_l2", title=None):
         ax.set_title(f"{kind}", fontsize=10)
     if bars:
         axes[0].set_ylim(0, float(means.max()) * 1.1 if len(means) else 1.0)  # linear: bars start at 0
-    elif len(positive) < len(means.dropna()) and len(positive):
+    elif not len(positive):  # every discrepancy is 0 (or none is finite): a linear axis from 0
+        axes[0].set_ylim(0, 1)
+    elif len(positive) < len(means.dropna()):
         # some discrepancies are exactly 0 (e.g. the same number of critical points): a log axis
         # would drop them off the chart; symlog shows them at 0, linear up to the smallest non-zero
         # value's decade, logarithmic above

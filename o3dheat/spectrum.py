@@ -186,7 +186,7 @@ def _megabytes(variable, default):
     """Bytes of the environment variable ``variable`` (megabytes), else of ``default``."""
     try:
         return int(float(os.environ.get(variable, str(default))) * 2**20)
-    except ValueError:
+    except (ValueError, OverflowError):  # not a number, or inf
         raise MeshError(f"{variable} must be a number, got {os.environ[variable]!r}") from None
 
 

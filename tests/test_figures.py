@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from conftest import icosphere
 
+import o3dheat
 import o3dheat.figures as figures
 import o3dheat.plot as plot
 
@@ -43,3 +44,30 @@ def test_paper_figures_on_the_bunny(tmp_path):
     mesh, name = default_mesh()
     index = figures.paper_figures(mesh, tmp_path, k=60, name=name, up="y", max_faces=8000)
     assert len(list(tmp_path.glob("*.png"))) == 8 and index.exists()
+
+
+def test_a_non_manifold_mesh_gets_its_figures_repaired_and_no_empty_folder_on_failure(tmp_path, caplog):
+    from o3dheat.cli import main
+
+    V, F = icosphere(2)
+    top = int(np.argmax(V[:, 2]))
+    V2 = V * [1, 1, -1] + [0, 0, 2 * V[top, 2]]  # a mirrored copy touching the first at one vertex
+    bottom = int(np.argmin(V2[:, 2]))
+    keep = np.arange(len(V2)) != bottom
+    index = np.full(len(V2), -1)
+    index[keep] = len(V) + np.arange(keep.sum())
+    index[bottom] = top
+    VV, FF = np.vstack([V, V2[keep]]), np.vstack([F, index[F[:, ::-1]]])
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        out = figures.paper_figures((VV, FF), tmp_path / "figs", k=20)
+    assert out.exists() and "o3dheat.repair" in caplog.text
+    with pytest.raises(o3dheat.MeshError, match="one value per vertex"):
+        figures.paper_figures((V, F), tmp_path / "two", field=np.c_[V[:, 0], V[:, 1]])
+    assert not (tmp_path / "two").exists()
+    # the command removes the folder it made when the recipe fails
+    import open3d as o3d
+
+    m = o3d.t.geometry.TriangleMesh(o3d.core.Tensor(V), o3d.core.Tensor(F))
+    o3dheat.io.write_mesh(tmp_path / "s.ply", m)
+    assert main(["figure", str(tmp_path / "s.ply"), "-o", str(tmp_path / "k0"), "-k", "0"]) != 0
+    assert not (tmp_path / "k0").exists()

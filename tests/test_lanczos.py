@@ -80,7 +80,7 @@ def test_results_do_not_depend_on_the_thread_count(monkeypatch):
     on CHOLMOD's column groups: 1, 2 or 3 threads give the same spectrum, bit for bit."""
     from o3dheat import parallel
 
-    monkeypatch.setattr(parallel, "CHUNK", 256)  # 1152 vertices: 5 parts per pass
+    monkeypatch.setattr(parallel, "CHUNK", 256)  # 1152 vertices: 8 parts per pass
     out = []
     for t in (1, 2, 3):
         with parallel.threads(t):

@@ -258,3 +258,53 @@ def test_the_legend_fits_a_narrow_figure():
     fig.canvas.draw()
     box = fig.legends[0].get_window_extent()
     assert box.x0 >= 0 and box.x1 <= fig.bbox.width
+
+
+def _sphere():
+    import open3d as o3d
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 12)
+    return m.vertex.positions.numpy().astype(float), m.triangle.indices.numpy().astype(np.int64)
+
+
+@pytest.mark.parametrize("renderer", ["matplotlib", pytest.param("open3d", marks=needs_renderer)])
+def test_the_picture_does_not_depend_on_the_winding(renderer, tmp_path):
+    """Inward faces (common in OBJ/STL exports) or a mix of both windings draw the same picture:
+    the normals that shade, lift the level sets and hide the back are taken after orienting."""
+    from matplotlib.image import imread
+
+    V, F = _sphere()
+    f = V[:, 2] + 0.5 * V[:, 0]
+    mixed = F.copy()
+    mixed[::2] = mixed[::2, ::-1]
+    images = []
+    for i, faces in enumerate((F, F[:, ::-1], mixed)):
+        plot.field((V, faces), f, renderer=renderer, size=2.5).savefig(tmp_path / f"{i}.png")
+        images.append(imread(tmp_path / f"{i}.png"))
+    for other in images[1:]:  # the same up to the rasterizer's rounding (a wrong winding made 27/255 on average)
+        assert np.abs(other - images[0]).max() <= 2 / 255 and np.abs(other - images[0]).mean() < 1e-3
+
+
+def test_style_arguments_are_checked():
+    V, F = icosphere(1)
+    for kw, what in [({"cmap": "nope"}, "cmap"), ({"size": 0}, "size"), ({"size": -1}, "size"),
+                     ({"level_sets": 2.5}, "level_sets")]:
+        with pytest.raises(o3dheat.MeshError, match=what):
+            plot.field((V, F), V[:, 0], renderer="matplotlib", **kw)
+
+
+@needs_renderer
+def test_render_checks_its_range():
+    V, F = icosphere(1)
+    for bad in [(np.nan, 1.0), (1.0, 0.0), "ab", (1.0,)]:
+        with pytest.raises(o3dheat.MeshError, match="vrange"):
+            plot.render((V, F), V[:, 0], vrange=bad)
+
+
+def test_a_study_of_zeros_only_is_drawn_at_zero(recwarn):
+    t = study_table("critical_points", range(1, 11))
+    t["rel_l2"] = 0.0
+    fig = plot.study(t, descriptor="critical_points")
+    fig.canvas.draw()
+    assert fig.axes[0].get_yscale() == "linear" and fig.axes[0].get_ylim() == (0.0, 1.0)
+    assert not [w for w in recwarn if "no positive values" in str(w.message)]
