@@ -24,6 +24,19 @@ def icosphere(level=3, radius=1.0):
     return V, np.asarray(m.triangles, dtype=np.int64)
 
 
+def glued_spheres(level=2):
+    """Two spheres touching at one vertex (a non-manifold "bowtie" vertex): (V, F)."""
+    V, F = icosphere(level)
+    top = int(np.argmax(V[:, 2]))
+    V2 = V * [1, 1, -1] + [0, 0, 2 * V[top, 2]]  # mirrored: its bottom vertex on the first's top
+    bottom = int(np.argmin(V2[:, 2]))
+    keep = np.arange(len(V2)) != bottom
+    index = np.full(len(V2), -1)
+    index[keep] = len(V) + np.arange(keep.sum())
+    index[bottom] = top
+    return np.vstack([V, V2[keep]]), np.vstack([F, index[F[:, ::-1]]])
+
+
 def grid(a=2.0, b=1.0, nx=40, ny=20, jitter=0.0, seed=0):
     """Flat a x b rectangle triangulated on an nx x ny grid (optionally jittered inside)."""
     x, y = np.meshgrid(np.linspace(0, a, nx + 1), np.linspace(0, b, ny + 1), indexing="ij")

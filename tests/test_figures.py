@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import icosphere
+from conftest import glued_spheres, icosphere
 
 import o3dheat
 import o3dheat.figures as figures
@@ -49,15 +49,8 @@ def test_paper_figures_on_the_bunny(tmp_path):
 def test_a_non_manifold_mesh_gets_its_figures_repaired_and_no_empty_folder_on_failure(tmp_path, caplog):
     from o3dheat.cli import main
 
+    VV, FF = glued_spheres()
     V, F = icosphere(2)
-    top = int(np.argmax(V[:, 2]))
-    V2 = V * [1, 1, -1] + [0, 0, 2 * V[top, 2]]  # a mirrored copy touching the first at one vertex
-    bottom = int(np.argmin(V2[:, 2]))
-    keep = np.arange(len(V2)) != bottom
-    index = np.full(len(V2), -1)
-    index[keep] = len(V) + np.arange(keep.sum())
-    index[bottom] = top
-    VV, FF = np.vstack([V, V2[keep]]), np.vstack([F, index[F[:, ::-1]]])
     with caplog.at_level("WARNING", logger="o3dheat"):
         out = figures.paper_figures((VV, FF), tmp_path / "figs", k=20)
     assert out.exists() and "o3dheat.repair" in caplog.text

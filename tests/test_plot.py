@@ -3,7 +3,7 @@ the matplotlib fallback, and the charts' axes (PAPER.md row P16)."""
 
 import numpy as np
 import pytest
-from conftest import icosphere, torus
+from conftest import glued_spheres, icosphere, torus
 
 import o3dheat
 import o3dheat.plot as plot
@@ -234,15 +234,7 @@ def test_bad_input():
 def test_a_non_manifold_scan_is_drawn_repaired_with_a_warning(caplog):
     """Two spheres glued at one vertex (a bowtie vertex): topology needs a 2-manifold, so the
     figure is drawn on o3dheat.repair's result (the same surface), and says so."""
-    V, F = icosphere(2)
-    top = int(np.argmax(V[:, 2]))
-    V2 = V * [1, 1, -1] + [0, 0, 2 * V[top, 2]]  # mirrored: its bottom vertex on the first's top
-    bottom = int(np.argmin(V2[:, 2]))
-    keep = np.arange(len(V2)) != bottom
-    index = np.full(len(V2), -1)
-    index[keep] = len(V) + np.arange(keep.sum())
-    index[bottom] = top
-    VV, FF = np.vstack([V, V2[keep]]), np.vstack([F, index[F[:, ::-1]]])
+    VV, FF = glued_spheres()
     assert o3dheat.check_mesh((VV, FF)).non_manifold_vertices == 1
     with caplog.at_level("WARNING", logger="o3dheat"):
         fig = plot.field((VV, FF), VV[:, 2], renderer="matplotlib" if not plot.renderer_available()[0] else "auto")
