@@ -406,6 +406,18 @@ def _field_values(f, n):
     return checks.field(f, n, "the field")
 
 
+def _welded(V, F, values):
+    """``(V, F, values)`` as every o3dheat function sees the mesh (:func:`o3dheat.mesh.prepare`):
+    exactly coincident vertices welded (an STL file's per-triangle copies: otherwise every
+    triangle is a part of its own, with its own critical points, and the shading is faceted),
+    degenerate faces and unreferenced vertices dropped; a welded vertex's value is the mean of
+    its copies'."""
+    from .mesh import prepare
+
+    p = prepare((V, F))
+    return p.V, p.F, p.restrict(values)
+
+
 def _surface(V, F, values, level_sets, critical_points):
     """``(S, V, F, values)``: the checked surface, built once per mesh, when level sets or critical
     points are drawn (else None). A mesh that is not a 2-manifold (a scan with non-manifold edges
@@ -542,6 +554,7 @@ def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cma
         ncols = checks.count(ncols, "ncols")
     ncols = min(ncols or min(T, 5), T)
     nrows = -(-T // ncols)
+    V, F, values = _welded(V, F, values)
     S, V, F, values = _surface(V, F, values, level_sets, critical_points)
     F = _oriented(V, F)
     frame = _View(V, view)
@@ -728,6 +741,7 @@ def render(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cma
             raise MeshError(f"vrange must be two finite numbers (low, high), low < high, got {vrange!r}")
     lo, hi = _range(f) if vrange is None else (float(vr[0]), float(vr[1]))
     _check_style(cmap)
+    V, F, f = _welded(V, F, f)
     S, V, F, f = _surface(V, F, f, level_sets, critical_points)
     F = _oriented(V, F)
     frame = _View(V, view)

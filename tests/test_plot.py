@@ -300,3 +300,19 @@ def test_a_study_of_zeros_only_is_drawn_at_zero(recwarn):
     fig.canvas.draw()
     assert fig.axes[0].get_yscale() == "linear" and fig.axes[0].get_ylim() == (0.0, 1.0)
     assert not [w for w in recwarn if "no positive values" in str(w.message)]
+
+
+def test_an_unwelded_stl_is_drawn_welded(tmp_path):
+    """An STL gives every triangle its own three vertices: drawn as they are, every triangle was
+    a part of its own (a torus showed 600 minima). Welded, the torus has 1 + 1 minimum/maximum
+    and 2 saddles (χ = 0)."""
+    import open3d as o3d
+
+    m = o3d.geometry.TriangleMesh.create_torus()
+    m.compute_triangle_normals()
+    o3d.io.write_triangle_mesh(str(tmp_path / "t.stl"), m)
+    t = o3dheat.io.read_mesh(tmp_path / "t.stl")
+    V = t.vertex.positions.numpy().astype(float)
+    assert len(V) > len(np.unique(V, axis=0))  # vertex copies, as STL has
+    fig = plot.field(t, V[:, 2], renderer="matplotlib")
+    assert legend_texts(fig)[1:] == ["maxima (1)", "minima (1)", "saddles (2)"]
