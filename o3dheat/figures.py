@@ -78,6 +78,8 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     from .topology import Surface, critical_points, persistence, simplify_critical_points
 
     out = Path(out)
+    if up not in ("x", "y", "z"):
+        raise MeshError(f"up must be 'x', 'y' or 'z', got {up!r}")
     V0, F0 = as_arrays(mesh)
     if field is None:
         axis = int(np.argmax(np.ptp(V0, axis=0)))
@@ -170,7 +172,8 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
                     "the weighted kernel and the implicit time stepping of eq. (8) at two times"))
     # Figs. 4-5: canonic basis functions, linear vs weighted kernel, on the irregular sampling
     Kl = heat_kernel((Vi, Fi), ki, variant="linear")  # its own spectrum (L x = λ x) and its own scales
-    c = int(np.argmin(np.linalg.norm(Vi - Vi.mean(0) - [0, 0, np.ptp(Vi[:, 2]) / 2], axis=1)))
+    a = {"x": 0, "y": 1, "z": 2}[up]  # the vertex nearest the top of the drawing (half-way up from the centre)
+    c = int(np.argmin(np.linalg.norm(Vi - Vi.mean(0) - np.eye(3)[a] * np.ptp(Vi[:, a]) / 2, axis=1)))
     B = np.stack([Kl.canonic_basis(c, Kl.scales()[0]), Kl.canonic_basis(c, Kl.scales()[4]),
                   Ki.canonic_basis(c, Ki.scales()[0]), Ki.canonic_basis(c, Ki.scales()[4])], 1)
     _save(_panels(up, (Vi, Fi), B, ncols=4, shared_range=False, critical_points=True, label="Φ_t(e_i)",

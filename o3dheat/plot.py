@@ -414,6 +414,12 @@ def _welded(V, F, values):
     its copies'."""
     from .mesh import prepare
 
+    used = np.unique(np.asarray(F).reshape(-1))
+    if 0 < len(used) < len(V):  # said here: prepare's message (value 0 in every result) is not a picture's
+        logging.getLogger("o3dheat").warning("%d vertices are in no face: not drawn", len(V) - len(used))
+        index = np.zeros(len(V), dtype=np.int64)
+        index[used] = np.arange(len(used))
+        V, F, values = V[used], index[F], values[used]
     p = prepare((V, F))
     return p.V, p.F, p.restrict(values)
 

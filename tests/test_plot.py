@@ -316,3 +316,13 @@ def test_an_unwelded_stl_is_drawn_welded(tmp_path):
     assert len(V) > len(np.unique(V, axis=0))  # vertex copies, as STL has
     fig = plot.field(t, V[:, 2], renderer="matplotlib")
     assert legend_texts(fig)[1:] == ["maxima (1)", "minima (1)", "saddles (2)"]
+
+
+def test_vertices_in_no_face_are_left_out_and_said(caplog):
+    V, F = icosphere(2)
+    V2 = np.vstack([V, [[9.0, 9.0, 9.0]]])  # far away, in no face: not in the picture, not in its frame
+    f = np.r_[V[:, 2], 100.0]
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        fig = plot.field((V2, F), f, renderer="matplotlib")
+    assert "1 vertices are in no face: not drawn" in caplog.text and "value 0" not in caplog.text
+    assert fig.axes[1].get_ylim()[1] < 2  # the colour range is the drawn vertices'
