@@ -745,10 +745,10 @@ def render(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cma
             vr = np.zeros(0)
         if len(vr) != 2 or not np.all(np.isfinite(vr)) or not vr[0] < vr[1]:
             raise MeshError(f"vrange must be two finite numbers (low, high), low < high, got {vrange!r}")
-    lo, hi = _range(f) if vrange is None else (float(vr[0]), float(vr[1]))
     _check_style(cmap)
     V, F, f = _welded(V, F, f)
     S, V, F, f = _surface(V, F, f, level_sets, critical_points)
+    lo, hi = _range(f) if vrange is None else (float(vr[0]), float(vr[1]))  # of what is drawn, as field's
     F = _oriented(V, F)
     frame = _View(V, view)
     r = _renderer("open3d")
