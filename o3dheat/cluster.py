@@ -83,9 +83,9 @@ def connect(scheduler, warm_up=False):
     ----------
     scheduler : None, "sequential", str or distributed.Client
     warm_up : bool
-        Run pymeshlab's first call in each worker's main thread
-        (:func:`o3dheat.sampling.warm_up`; for jobs that resample meshes). With "sequential",
-        in this thread.
+        Pay each worker's one-time costs at start: pymeshlab's first call in its main thread
+        (:func:`o3dheat.sampling.warm_up`; for jobs that resample meshes) and the topology's
+        compiled loops (:func:`o3dheat.topology.warm_up`). With "sequential", in this process.
 
     Returns
     -------
@@ -111,8 +111,6 @@ def connect(scheduler, warm_up=False):
     """
     if scheduler == "sequential":
         if warm_up:
-            from .sampling import warm_up as _warm_up
-
             _warm_up()
         return None, False
     from distributed import Client
@@ -173,9 +171,22 @@ def session(scheduler, warm_up=False):
         close(client, owned)
 
 
+def _warm_up():
+    """The one-time costs of a process, paid now: pymeshlab's first call (in the main thread, see
+    :func:`o3dheat.sampling.warm_up`) and loading the topology's compiled loops
+    (:func:`o3dheat.topology.warm_up`, 0.3 s per process: in a study it made every worker's first
+    task slower)."""
+    from .sampling import warm_up as meshlab
+    from .topology import warm_up as topology
+
+    meshlab()
+    topology()
+
+
 def register_warm_up(client):
-    """pymeshlab's first call in each worker's main thread, now and in workers that join later
-    (see :func:`o3dheat.sampling.warm_up`).
+    """pymeshlab's first call in each worker's main thread and the topology's compiled loops
+    loaded, now and in workers that join later (see :func:`o3dheat.sampling.warm_up` and
+    :func:`o3dheat.topology.warm_up`).
 
     Examples
     --------
@@ -194,9 +205,9 @@ def register_warm_up(client):
         name = "o3dheat-pymeshlab-warm-up"
 
         def setup(self, worker):
-            from o3dheat.sampling import warm_up
+            from o3dheat.cluster import _warm_up
 
-            warm_up()
+            _warm_up()
 
     register = getattr(client, "register_plugin", None) or client.register_worker_plugin
     register(WarmUp())

@@ -778,3 +778,14 @@ def test_compiled_in_this_process_counts_cache_misses(monkeypatch):
     assert T.compiled_in_this_process() is False
     monkeypatch.setattr(T, "_compiled", {"a": fake(0), "b": fake(1)})
     assert T.compiled_in_this_process() is True
+
+
+def test_warm_up_loads_every_compiled_loop():
+    """topology.warm_up() (run by each Dask worker at start) leaves no loop to load in a task."""
+    import subprocess
+    import sys
+
+    code = ("import o3dheat.topology as T; T.warm_up(); "
+            "print(sorted(T._compiled))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == str(sorted(["_k_arcs", "_k_classify", "_k_edges", "_k_fans", "_k_sweeps"]))
