@@ -21,7 +21,10 @@ extensions = [
     "numpydoc",
     "cli_reference",                # docs/_ext: the command reference from its parser
     "sphinx_gallery.gen_gallery",
+    "myst_parser",                  # docs/details/*.md: the README's long sections, as written
 ]
+source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
+myst_heading_anchors = 3
 
 exclude_patterns = ["_build", "_ext", "examples/GALLERY_HEADER.rst", "**.ipynb_checkpoints"]
 templates_path = []

@@ -1,7 +1,7 @@
 """o3dheat: multi-scale heat-kernel analysis for Open3D meshes.
 
 Implements the weighted linear-FEM heat kernel of Patanè & Falcidieno, "Multi-Scale Feature
-Spaces for Shape Processing and Analysis" (SMI 2010). See the README for a tour.
+Spaces for Shape Processing and Analysis" (SMI 2010). See the README and the documentation site (scripts/docs.sh) for a tour.
 """
 
 from .approximation import ScaleSpace, feature_driven, scale_space

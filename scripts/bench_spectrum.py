@@ -13,7 +13,7 @@ shared machine, noise only ever adds time, so the minimum is the fairest single 
     .venv/bin/python scripts/bench_spectrum.py                 # 10k, 50k, 200k; k = 100 (+ k = 300 at 50k)
     .venv/bin/python scripts/bench_spectrum.py --sizes 10000   # quick
     .venv/bin/python scripts/bench_spectrum.py --methods o3dheat,lapy-cholmod
-    .venv/bin/python scripts/bench_spectrum.py --repeat 2       # the README table
+    .venv/bin/python scripts/bench_spectrum.py --repeat 2       # the table of docs/details/eigensolver.md
     .venv/bin/python scripts/bench_spectrum.py --sizes 1000000 --meshes bunny --methods o3dheat,lapy-cholmod
 
 Needs LaPy (``pip install -e .[dev]`` installs it). Prints a Markdown table; ratios are
