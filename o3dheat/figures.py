@@ -5,8 +5,6 @@ and drawn by :mod:`o3dheat.plot`. Each recipe writes PNGs into a folder and says
 
 from __future__ import annotations
 
-import logging
-
 import numpy as np
 
 from . import checks, plot
@@ -92,13 +90,8 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
                             "pick a column")
     report = check_mesh((V0, F0))
     if report.non_manifold_edges or report.non_manifold_vertices:  # as plot draws them: repaired, said
-        from .mesh import repair
-
-        r = repair((V0, F0), orient=False)
-        logging.getLogger("o3dheat").warning(
-            "%d non-manifold edges and %d non-manifold vertices: the figures are made on the mesh as "
-            "o3dheat.repair makes it (%s)", report.non_manifold_edges, report.non_manifold_vertices, r)
-        (V0, F0), f0 = as_arrays(r.mesh), f0[r.source]
+        V0, F0, f0 = plot._repaired(V0, F0, f0, f"{report.non_manifold_edges} non-manifold edges and "
+                                    f"{report.non_manifold_vertices} non-manifold vertices", "the figures are made")
     out.mkdir(parents=True, exist_ok=True)
     prep = prepare((V0, F0))
     V, F, f = prep.V, prep.F, prep.restrict(f0)

@@ -439,15 +439,20 @@ def _surface(V, F, values, level_sets, critical_points):
     except MeshError as e:
         if "manifold" not in str(e):
             raise
-        from .mesh import as_arrays as arrays
-        from .mesh import repair
+        V2, F2, values = _repaired(V, F, values, str(e).split(":")[0], "level sets and critical points are drawn")
+        return Surface.from_faces(len(V2), F2, V2), V2, F2, values
 
-        r = repair((V, F), orient=False)
-        V2, F2 = arrays(r.mesh)
-        logging.getLogger("o3dheat").warning(
-            "%s: level sets and critical points are drawn on the mesh as o3dheat.repair makes it (%s)",
-            str(e).split(":")[0], r)
-        return Surface.from_faces(len(V2), F2, V2), V2, F2, values[r.source]
+
+def _repaired(V, F, values, why, what):
+    """``(V, F, values)`` of a non-manifold mesh as :func:`o3dheat.repair` makes it (split, not
+    reoriented), each copy of a vertex with its value, and a warning saying ``why`` and ``what``
+    is made on it: the one repair of the drawings and the figure recipes."""
+    from .mesh import repair
+
+    r = repair((V, F), orient=False)
+    V2, F2 = as_arrays(r.mesh)
+    logging.getLogger("o3dheat").warning("%s: %s on the mesh as o3dheat.repair makes it (%s)", why, what, r)
+    return V2, F2, values[r.source]
 
 
 def _oriented(V, F):
