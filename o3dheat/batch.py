@@ -337,7 +337,7 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
     """
     import pandas as pd
 
-    from .cluster import progress_bar, session
+    from .cluster import progress_bar, session, task_error
 
     chain, inputs, dsts, record = _preflight(chain, paths, out_dir, overwrite, suffix)
     rows = [[str(s), str(d), "skipped", 0.0, ""] for s, d in zip(inputs, dsts)]
@@ -379,7 +379,7 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
                     try:
                         result = fut.result()
                     except Exception as e:  # the worker died (KilledWorker), was cancelled...
-                        result = ("failed", 0.0, _message(e))
+                        result = ("failed", 0.0, task_error(e))
                     done(i, result)
     finally:
         if bar is not None:

@@ -29,7 +29,7 @@ import sys
 
 from .errors import MeshError
 
-__all__ = ["local_cluster", "connect", "session", "register_warm_up", "progress_bar"]
+__all__ = ["local_cluster", "connect", "session", "register_warm_up", "progress_bar", "task_error"]
 
 _TRIM_ENV = "MALLOC_TRIM_THRESHOLD_"
 _TRIM = f"distributed.nanny.pre-spawn-environ.{_TRIM_ENV}"
@@ -211,6 +211,31 @@ def register_warm_up(client):
 
     register = getattr(client, "register_plugin", None) or client.register_worker_plugin
     register(WarmUp())
+
+
+def task_error(e):
+    """An exception raised by a Dask task's future, as one line; a worker's death says what most
+    often causes it.
+
+    Dask retries a task whose worker died (``distributed.scheduler.allowed-failures`` times), then
+    raises ``KilledWorker``, whose text names the task's key and not the cause. o3dheat's
+    eigensolves refuse work that a Dask worker's memory limit cannot hold
+    (:func:`o3dheat.linalg.memory_limits`), but other steps, or other processes, can still
+    exhaust it.
+
+    Examples
+    --------
+    >>> from o3dheat.cluster import task_error
+    >>> task_error(ValueError("bad   value"))
+    'ValueError: bad value'
+    >>> class KilledWorker(Exception): pass
+    >>> print(task_error(KilledWorker("Attempted to run task 'x' on 4 different workers")))
+    KilledWorker: the Dask workers that ran it died (most often: out of memory; see the workers' logs): give each worker more memory (fewer workers) or process a smaller mesh
+    """
+    if type(e).__name__ == "KilledWorker":
+        return ("KilledWorker: the Dask workers that ran it died (most often: out of memory; see the workers' "
+                "logs): give each worker more memory (fewer workers) or process a smaller mesh")
+    return f"{type(e).__name__}: {' '.join(str(e).split()) or repr(e)}"
 
 
 def progress_bar(total, progress=None, unit="task"):

@@ -41,7 +41,8 @@ import scipy.sparse.linalg as spla
 from . import parallel
 from .errors import SolverError
 
-__all__ = ["BACKENDS", "Factor", "available_backends", "factorize", "available_memory", "OutOfMemory"]
+__all__ = ["BACKENDS", "Factor", "available_backends", "factorize", "available_memory", "memory_limits",
+           "OutOfMemory"]
 
 log = logging.getLogger("o3dheat")
 
@@ -71,9 +72,8 @@ class OutOfMemory(SolverError):
 
 
 def available_memory():
-    """Bytes this process may still allocate: the smaller of the system's available memory
-    (``MemAvailable`` of /proc/meminfo) and what an address-space limit (``ulimit -v``) leaves;
-    None when neither is known.
+    """Bytes this process may still allocate: the smallest of what each known limit leaves (see
+    :func:`memory_limits`); None when no limit is known.
 
     Examples
     --------
@@ -81,33 +81,167 @@ def available_memory():
     >>> m = la.available_memory(); m is None or m > 0
     True
     """
-    limits = []
+    room = memory_limits()
+    return min(room.values()) if room else None
+
+
+def memory_limits():
+    """What each limit on this process's memory still leaves, in bytes, by name.
+
+    * ``"system"``: the system's available memory (``MemAvailable`` of /proc/meminfo);
+    * ``"cgroup"``: a memory cgroup's limit (a container's ``--memory``, a systemd or batch
+      scheduler's slice; cgroup v2 ``memory.max`` or v1 ``memory.limit_in_bytes``, of the process's
+      group and every group above it) less its usage, page cache that can be dropped not counted
+      as used. The kernel kills a process of a group that reaches its limit;
+    * ``"Dask worker"``: inside a Dask worker with a memory limit, the fraction of it at which its
+      nanny restarts the worker (``distributed.worker.memory.terminate``, 95% by default) less the
+      process's resident memory. A worker that is restarted kills its task, and Dask retries it on
+      another worker, which dies the same way;
+    * ``"address space"``: an address-space limit (``ulimit -v``) less the process's address space.
+
+    Returns
+    -------
+    dict
+        Name -> bytes left (at least 0), for the limits that apply.
+
+    Examples
+    --------
+    >>> import o3dheat.linalg as la
+    >>> room = la.memory_limits()
+    >>> set(room) <= {"system", "cgroup", "Dask worker", "address space"}, all(v >= 0 for v in room.values())
+    (True, True)
+    """
+    room = {}
     try:
         with open("/proc/meminfo") as fh:
             for line in fh:
                 if line.startswith("MemAvailable:"):
-                    limits.append(int(line.split()[1]) * 1024)
+                    room["system"] = int(line.split()[1]) * 1024
     except (OSError, ValueError, IndexError):
         pass
+    for name, left in (("cgroup", _cgroup_room()), ("Dask worker", _dask_worker_room())):
+        if left is not None:
+            room[name] = left
     try:
         import resource
 
         soft = resource.getrlimit(resource.RLIMIT_AS)[0]
         if soft != resource.RLIM_INFINITY:
-            with open("/proc/self/statm") as fh:
-                used = int(fh.read().split()[0]) * resource.getpagesize()
-            limits.append(max(soft - used, 0))
+            room["address space"] = max(soft - _statm(0), 0)
     except (ImportError, OSError, ValueError):
         pass
-    return min(limits) if limits else None
+    return room
+
+
+def _statm(field):
+    """Field of /proc/self/statm in bytes (0: address space, 1: resident)."""
+    import resource
+
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[field]) * resource.getpagesize()
+
+
+#: cgroup v2 and v1 files: limit, usage, and the memory.stat key of droppable page cache
+_CGROUP_FILES = {"v2": ("memory.max", "memory.current", "inactive_file"),
+                 "v1": ("memory.limit_in_bytes", "memory.usage_in_bytes", "total_inactive_file")}
+
+
+def _cgroup_room(proc="/proc/self/cgroup", root="/sys/fs/cgroup"):
+    """Bytes left under the tightest memory cgroup limit of this process and its parent groups
+    (v2 unified or v1 memory controller), or None without a limit.
+
+    A group's path may not exist under ``root`` (a v1 container without a cgroup namespace sees
+    its own group at the root): parents are tried up to the root, which is the container's."""
+    from pathlib import Path
+
+    try:
+        lines = Path(proc).read_text().splitlines()
+    except OSError:
+        return None
+    rooms = []
+    for line in lines:
+        parts = line.split(":", 2)
+        if len(parts) != 3:
+            continue
+        if parts[1] == "" and parts[0] == "0":
+            base, files = Path(root), _CGROUP_FILES["v2"]
+        elif "memory" in parts[1].split(","):
+            base, files = Path(root) / "memory", _CGROUP_FILES["v1"]
+        else:
+            continue
+        group = base / parts[2].strip().lstrip("/")
+        while True:
+            left = _group_room(group, *files)
+            if left is not None:
+                rooms.append(left)
+            if group == base or base not in group.parents:
+                break
+            group = group.parent
+    return min(rooms) if rooms else None
+
+
+def _group_room(group, limit_file, usage_file, cache_key):
+    try:
+        text = (group / limit_file).read_text().strip()
+        if text == "max":
+            return None
+        limit = int(text)
+        if limit >= 2**60:  # v1's "no limit" (LONG_MAX rounded to pages)
+            return None
+        usage = int((group / usage_file).read_text())
+    except (OSError, ValueError):
+        return None
+    cache = 0
+    try:
+        for line in (group / "memory.stat").read_text().splitlines():
+            key, _, value = line.partition(" ")
+            if key == cache_key:
+                cache = int(value)
+                break
+    except (OSError, ValueError):
+        pass
+    return max(limit - usage + cache, 0)
+
+
+def _dask_worker_room():
+    """Bytes left before this Dask worker's nanny restarts it, or None (not in a Dask worker, no
+    memory limit, or restarts disabled)."""
+    import sys
+
+    if "distributed" not in sys.modules:  # never imported: not a worker
+        return None
+    try:
+        import dask
+        from distributed import get_worker
+
+        worker = get_worker()
+        limit = getattr(getattr(worker, "memory_manager", None), "memory_limit", None)
+        fraction = dask.config.get("distributed.worker.memory.terminate", 0.95)
+    except (ImportError, ValueError, AttributeError):
+        return None
+    if not limit or not fraction:
+        return None
+    try:
+        return max(int(float(fraction) * limit) - _statm(1), 0)
+    except (OSError, ValueError):
+        return None
+
+
+_LIMIT_NAMES = {"cgroup": " (under the memory limit of this process's cgroup: a container's, a job's)",
+                "Dask worker": " (under the Dask worker's memory limit)",
+                "address space": " (under the address-space limit, ulimit -v)"}
 
 
 def check_memory(needed, what, advice):
-    """Raise :class:`OutOfMemory` when ``needed`` bytes exceed what this process may allocate."""
+    """Raise :class:`OutOfMemory` when ``needed`` bytes exceed what this process may allocate
+    (the message names the limit: the system's memory, a cgroup's, a Dask worker's, ulimit -v)."""
     have = available_memory()
     if have is not None and needed > have:
+        room = memory_limits()
+        name = min(room, key=room.get) if room else "system"
+        where = _LIMIT_NAMES.get(name, "")
         raise OutOfMemory(f"{what} needs about {needed / 2**30:.2f} GiB, but only {have / 2**30:.2f} GiB "
-                          f"are available: {advice}")
+                          f"are available{where}: {advice}")
 
 
 def available_backends():

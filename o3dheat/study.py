@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cluster import progress_bar, session
+from .cluster import progress_bar, session, task_error
 from . import kernel
 from .errors import MeshError
 
@@ -396,7 +396,7 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
                         result = fut.result()
                     except Exception as e:  # e.g. the reference of this mesh failed
                         result = [[m, r, s["kind"], "", "", 0, float("nan"), float("nan"), float("nan"), 0,
-                                   f"{type(e).__name__}: {e}"]]
+                                   task_error(e)]]
                     done(m, r, result)
     finally:
         if bar is not None:

@@ -213,6 +213,24 @@ def test_dask_gives_the_same_files_bit_for_bit(scans, tmp_path):
         assert p.read_bytes() == (tmp_path / "dask" / p.name).read_bytes()
 
 
+def test_a_file_too_big_for_a_dask_worker_fails_at_once_naming_the_limit(scans, tmp_path):
+    """Not four workers restarted by their nannies one after the other, then a KilledWorker."""
+    pytest.importorskip("distributed")
+    from distributed import Client, LocalCluster
+
+    big = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 300)  # 179,402 vertices: ~1.2 GiB for k = 300
+    write_mesh(scans / "big.ply", big)
+    steps = [("hks", {"k": 300})]
+    with LocalCluster(n_workers=1, threads_per_worker=1, memory_limit="1GB", dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        pids = client.run(os.getpid)
+        table = run(steps, [scans / "big.ply", scans / "m0.ply"], tmp_path / "out", scheduler=client, progress=False)
+        assert client.run(os.getpid) == pids  # no worker was restarted
+    assert table["status"].tolist() == ["failed", "done"]
+    assert "needs about" in table["error"][0] and "under the Dask worker's memory limit" in table["error"][0]
+    assert not (tmp_path / "out" / "big.ply").exists()
+
+
 # --------------------------------------------------------------------------------- the command
 def test_cli_batch_with_filters_and_chain_file(scans, tmp_path, capsys):
     out = tmp_path / "out"

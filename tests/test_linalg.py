@@ -266,3 +266,67 @@ def test_solve_into_a_given_array(spd, backend):
     for bad in (np.empty((spd.shape[0], 5)), np.empty(b.shape, order="F"), np.empty(b.shape, np.float32)):
         with pytest.raises(SolverError, match="out must be"):
             f.solve(b, out=bad)
+
+
+def _cgroup_tree(tmp_path, proc_line, groups):
+    """A fake /proc/self/cgroup and cgroup mount: ``groups`` maps a folder to its files."""
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    (tmp_path / "cgroup").write_text(proc_line + "\n")
+    for folder, files in groups.items():
+        d = tmp_path / "fs" / folder
+        d.mkdir(parents=True, exist_ok=True)
+        for name, text in files.items():
+            (d / name).write_text(text)
+    return str(tmp_path / "cgroup"), str(tmp_path / "fs")
+
+
+def test_cgroup_v2_limit_counts_usage_but_not_droppable_cache(tmp_path):
+    proc, root = _cgroup_tree(tmp_path, "0::/", {
+        ".": {"memory.max": "1000000\n", "memory.current": "600000\n", "memory.stat": "anon 1\ninactive_file 50000\n"}})
+    assert la._cgroup_room(proc, root) == 1000000 - 600000 + 50000
+
+
+def test_cgroup_v2_without_limit_and_with_a_tighter_parent(tmp_path):
+    proc, root = _cgroup_tree(tmp_path, "0::/user.slice/job", {
+        "user.slice/job": {"memory.max": "max\n", "memory.current": "5\n"},
+        "user.slice": {"memory.max": "2000\n", "memory.current": "1500\n"},
+        ".": {"memory.max": "max\n"}})
+    assert la._cgroup_room(proc, root) == 500  # the parent's limit binds
+    proc, root = _cgroup_tree(tmp_path / "b", "0::/", {".": {"memory.max": "max\n", "memory.current": "5\n"}})
+    assert la._cgroup_room(proc, root) is None
+
+
+def test_cgroup_v1_container_without_namespace_and_unlimited(tmp_path):
+    # the group's path (the host's) does not exist in the container: its own group is the root
+    proc, root = _cgroup_tree(tmp_path, "12:cpu:/\n4:memory:/docker/abc", {
+        "memory": {"memory.limit_in_bytes": "3000\n", "memory.usage_in_bytes": "1000\n",
+                   "memory.stat": "cache 9\ntotal_inactive_file 100\n"}})
+    assert la._cgroup_room(proc, root) == 2100
+    proc, root = _cgroup_tree(tmp_path / "b", "4:memory:/", {
+        "memory": {"memory.limit_in_bytes": "9223372036854771712\n", "memory.usage_in_bytes": "1000\n"}})
+    assert la._cgroup_room(proc, root) is None
+    assert la._cgroup_room(str(tmp_path / "missing"), root) is None
+
+
+def test_memory_check_names_the_limit_that_binds(monkeypatch):
+    monkeypatch.setattr(la, "_cgroup_room", lambda: 2**30)
+    assert la.memory_limits()["cgroup"] == 2**30 and la.available_memory() <= 2**30
+    with pytest.raises(la.OutOfMemory, match=r"needs about 2.00 GiB, but only 1.00 GiB .*cgroup: a container's"):
+        la.check_memory(2**31, "this eigensolve", "decimate the mesh")
+
+
+def test_dask_worker_memory_limit_is_a_limit(monkeypatch):
+    distributed = pytest.importorskip("distributed")
+    import types
+
+    assert la._dask_worker_room() is None  # not in a worker
+    worker = types.SimpleNamespace(memory_manager=types.SimpleNamespace(memory_limit=10 * 2**30))
+    monkeypatch.setattr(distributed, "get_worker", lambda: worker)
+    left = la._dask_worker_room()
+    assert 0 < left < 0.95 * 10 * 2**30 and la.memory_limits()["Dask worker"] == pytest.approx(left, rel=0.01)
+    import dask
+
+    with dask.config.set({"distributed.worker.memory.terminate": False}):  # never restarted: no limit
+        assert la._dask_worker_room() is None
+    worker.memory_manager.memory_limit = None
+    assert la._dask_worker_room() is None
