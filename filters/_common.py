@@ -102,10 +102,9 @@ class Site:
         >>> site.attribute("positions").shape, site.attribute("positions", column=2).shape
         ((114, 3), (114,))
         """
-        from o3dheat.filters import one_column
+        from o3dheat.filters import need_attribute, one_column
 
-        if name not in self.attrs:
-            raise MeshError(f"no vertex attribute {name!r}; this geometry has: {', '.join(self.names())}")
+        need_attribute(dict.fromkeys(self.names()), name)
         a = self.attrs[name].numpy()
         if len(a) != self.n:
             raise MeshError(f"attribute {name!r} has {len(a)} rows for {self.n} vertices")
@@ -306,6 +305,18 @@ def kernel_of(site, k, variant="weighted", normalize=None):
                         f"or operators='reconstruct' for the {variant!r} kernel")
     mass = kernel.mass_of(variant)  # an unknown variant: MeshError listing them
     return HeatKernel(site.spectrum(k=k, mass=mass), variant=variant, normalize=normalize)
+
+
+def time_count(times, scales):
+    """How many times :func:`times_of` gives: the columns of a filter's multi-scale output.
+
+    Examples
+    --------
+    >>> from o3dheat_filters._common import time_count
+    >>> time_count(None, 10), time_count((0.1, 0.2), 10)
+    (10, 2)
+    """
+    return len(times) if times else scales
 
 
 def times_of(kernel, times, scales, grid="paper"):

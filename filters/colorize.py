@@ -8,7 +8,17 @@ import numpy as np
 
 from o3dheat.errors import MeshError
 
+from o3dheat.filters import check_column, need_attribute
+
 from ._common import Site
+
+
+def _colormap(name):
+    from matplotlib import colormaps
+
+    if name not in colormaps:
+        raise MeshError(f"unknown colormap {name!r} (matplotlib names: viridis, coolwarm, ...)")
+    return colormaps[name]
 
 
 @dataclass(frozen=True)
@@ -56,15 +66,25 @@ class Colorize:
         if self.range is not None and (len(self.range) != 2 or not self.range[0] < self.range[1]):
             raise MeshError(f"range must be two increasing numbers, got {self.range}")
 
-    def __call__(self, geometry):
-        from matplotlib import colormaps
+    def plan(self, columns):
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
 
-        if self.colormap not in colormaps:
-            raise MeshError(f"unknown colormap {self.colormap!r} (matplotlib names: viridis, coolwarm, ...)")
+        Examples
+        --------
+        >>> import o3dheat.filters as flt
+        >>> flt.get("colorize", attribute="hks", column=-1).plan({"positions": 3, "hks": 10})
+        {'colors': 3}
+        """
+        _colormap(self.colormap)
+        check_column(need_attribute(columns, self.attribute), self.attribute, self.column)
+        return {self.output: 3}
+
+    def __call__(self, geometry):
+        colormap = _colormap(self.colormap)
         site = Site(geometry)
         f = site.scalar(self.attribute, self.column)
         lo, hi = self.range if self.range is not None else np.percentile(f, [2, 98])
         s = np.clip((f - lo) / (hi - lo), 0, 1) if hi > lo else np.full(f.shape, 0.5)
-        rgb = colormaps[self.colormap](s)[:, :3].astype(np.float32)
+        rgb = colormap(s)[:, :3].astype(np.float32)
         site.set(self.output, rgb)
         return site.result()

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from o3dheat.errors import MeshError
+from o3dheat.filters import check_column, need_attribute
 
 from ._common import Operators, Site
 
@@ -55,6 +56,18 @@ class CriticalPointsFilter:
     def __post_init__(self):
         if self.delta is not None and self.keep_fraction is not None:
             raise MeshError("give delta or keep_fraction, not both")
+
+    def plan(self, columns):
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+
+        Examples
+        --------
+        >>> import o3dheat.filters as flt
+        >>> flt.get("critical_points", attribute="height").plan({"positions": 3, "height": 1})
+        {'height_critical': 1}
+        """
+        check_column(need_attribute(columns, self.attribute), self.attribute, self.column)
+        return {self.output or f"{self.attribute}_critical": 1}
 
     def __call__(self, geometry):
         import o3dheat

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from o3dheat.errors import MeshError
+from o3dheat.filters import check_column, need_attribute
 from o3dheat.kernel import mass_of
 
 from ._common import Operators, Site, Variant, kernel_of
@@ -70,6 +71,18 @@ class FeatureApprox:
         if self.delta is not None and self.keep_fraction is not None:
             raise MeshError("give delta or keep_fraction, not both")
         mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
+
+    def plan(self, columns):
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+
+        Examples
+        --------
+        >>> import o3dheat.filters as flt
+        >>> flt.get("feature_approx", attribute="height").plan({"positions": 3, "height": 1})
+        {'height_glob': 1, 'height_loc': 1}
+        """
+        check_column(need_attribute(columns, self.attribute), self.attribute, self.column)
+        return {f"{self.attribute}_glob": 1, f"{self.attribute}_loc": 1}
 
     def __call__(self, geometry):
         import o3dheat

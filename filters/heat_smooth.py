@@ -5,9 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from o3dheat.errors import MeshError
+from o3dheat.filters import check_column, need_attribute
 from o3dheat.kernel import mass_of
 
-from ._common import Grid, Normalization, Operators, Site, Variant, kernel_of, times_of
+from ._common import Grid, Normalization, Operators, Site, Variant, kernel_of, time_count, times_of
 
 
 @dataclass(frozen=True)
@@ -72,15 +73,36 @@ class HeatSmooth:
         if self.times is not None and any(t < 0 for t in self.times):
             raise MeshError("times must be >= 0")
 
-    def __call__(self, geometry):
-        site = Site(geometry, self.operators)
-        f = site.attribute(self.attribute, self.column)
-        count = len(self.times) if self.times else self.scales  # checked before the eigensolve
-        if f.ndim == 2 and f.shape[1] > 1 and count > 1:
-            c = f.shape[1]
+    def _columns_out(self, c):
+        """Columns of the output for an input of ``c`` columns (after ``column``); the refusal of
+        a multi-column field at several times."""
+        count = time_count(self.times, self.scales)
+        if c > 1 and count > 1:
             raise MeshError(f"attribute {self.attribute!r} has {c} columns (0..{c - 1}): pick one with column=N "
                             "(0 is the first, -1 the last) to smooth it at several times, or give one time "
                             "(times=T) to smooth every column")
+        return count if count > 1 else c
+
+    def plan(self, columns):
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+
+        Examples
+        --------
+        >>> import o3dheat.filters as flt
+        >>> flt.get("heat_smooth", attribute="positions", column=2, scales=5).plan({"positions": 3})
+        {'positions_smooth': 5}
+        """
+        c = need_attribute(columns, self.attribute)
+        if self.column is not None:
+            check_column(c, self.attribute, self.column)
+            c = 1
+        return {self.output or f"{self.attribute}_smooth": self._columns_out(c)}
+
+    def __call__(self, geometry):
+        site = Site(geometry, self.operators)
+        f = site.attribute(self.attribute, self.column)
+        count = time_count(self.times, self.scales)
+        self._columns_out(f.shape[1] if f.ndim == 2 else 1)  # checked before the eigensolve
         if f.ndim == 2 and f.shape[1] == 1 and count > 1:  # one column: (n, T) like an (n,) field
             f = f[:, 0]
         K = kernel_of(site, self.k, self.variant, self.normalize)

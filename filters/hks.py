@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from o3dheat.errors import MeshError
 from o3dheat.kernel import HKS_DEFAULT, mass_of
 
-from ._common import Grid, HksForm, Normalization, Operators, Site, Variant, kernel_of, times_of
+from ._common import Grid, HksForm, Normalization, Operators, Site, Variant, kernel_of, time_count, times_of
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,17 @@ class Hks:
         if self.k < 1 or self.scales < 1:
             raise MeshError("k and scales must be positive")
         mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
+
+    def plan(self, columns):
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+
+        Examples
+        --------
+        >>> import o3dheat.filters as flt
+        >>> flt.get("hks", scales=4).plan({"positions": 3})
+        {'hks': 4}
+        """
+        return {self.output: time_count(self.times, self.scales)}
 
     def __call__(self, geometry):
         site = Site(geometry, self.operators)

@@ -8,6 +8,7 @@ from typing import Literal
 import numpy as np
 
 from o3dheat.errors import MeshError
+from o3dheat.filters import need_attribute
 
 from ._common import Operators, Site
 
@@ -61,6 +62,19 @@ class Scalar:
             raise MeshError(f"sigma must be >= 0, got {self.sigma}")
         if self.kind == "noise" and not self.attribute:
             raise MeshError("kind='noise' needs attribute= (the field to perturb)")
+
+    def plan(self, columns):
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+
+        Examples
+        --------
+        >>> import o3dheat.filters as flt
+        >>> flt.get("scalar", kind="noise", attribute="positions").plan({"positions": 3})
+        {'positions_noisy': 3}
+        """
+        if self.kind == "noise":
+            return {self.output or f"{self.attribute}_noisy": need_attribute(columns, self.attribute)}
+        return {self.output or ("height" if self.kind == "height" else self.kind): 1}
 
     def __call__(self, geometry):
         site = Site(geometry, self.operators)

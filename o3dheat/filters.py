@@ -40,7 +40,8 @@ import numpy as np
 from .errors import MeshError
 
 __all__ = ["GROUP", "names", "describe", "get", "apply", "Chain", "Parameter", "OneOf", "shared_spectrum",
-           "set_disk_cache", "parse_value", "refresh", "one_column", "plain_text"]
+           "set_disk_cache", "parse_value", "refresh", "one_column", "check_column", "attribute_columns",
+           "need_attribute", "plain_text"]
 
 GROUP = "o3dheat.filters"
 
@@ -320,10 +321,44 @@ def one_column(values, name, column=None, option="column="):
     """
     a = np.asarray(values)
     a = a.reshape(len(a), -1) if a.ndim > 1 else a.reshape(len(a), 1)
-    c = a.shape[1]
+    return a[:, check_column(a.shape[1], name, column, option)]
+
+
+def check_column(count, name, column=None, option="column="):
+    """The column :func:`one_column` takes from an attribute of ``count`` columns, without its
+    values (for checking a chain before running it, :meth:`Chain.check`).
+
+    Parameters
+    ----------
+    count : int
+        The attribute's columns (1 for an (n,) attribute).
+    name, column, option
+        As for :func:`one_column`.
+
+    Returns
+    -------
+    int
+        The column's index (``column`` as given, or 0 for a one-column attribute).
+
+    Raises
+    ------
+    MeshError
+        As :func:`one_column`.
+
+    Examples
+    --------
+    >>> from o3dheat.filters import check_column
+    >>> check_column(1, "height"), check_column(10, "hks", -1)
+    (0, -1)
+    >>> check_column(10, "hks")
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: attribute 'hks' has 10 columns (0..9): pick one with column=N (0 is the first, -1 the last)
+    """
+    c = int(count)
     if column is None:
         if c == 1:
-            return a[:, 0]
+            return 0
         raise MeshError(f"attribute {name!r} has {c} columns (0..{c - 1}): pick one with {option}N "
                         "(0 is the first, -1 the last)")
     if isinstance(column, bool) or not isinstance(column, (int, np.integer)):
@@ -331,7 +366,62 @@ def one_column(values, name, column=None, option="column="):
     if not -c <= column < c:
         cols = "1 column (0)" if c == 1 else f"{c} columns (0..{c - 1})"
         raise MeshError(f"attribute {name!r} has {cols}: column {column} does not exist")
-    return a[:, column]
+    return column
+
+
+def attribute_columns(geometry):
+    """The per-vertex (or per-point) attributes of a geometry and their column counts: what a
+    filter's ``plan`` reads (see :meth:`Chain.check`).
+
+    Parameters
+    ----------
+    geometry : Open3D TriangleMesh or PointCloud (tensor or legacy)
+
+    Returns
+    -------
+    dict
+        Name -> columns (1 for an (n,) attribute; trailing axes multiplied, as the filters flatten
+        them).
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat.filters import attribute_columns
+    >>> attribute_columns(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 4))
+    {'positions': 3}
+    """
+    import open3d as o3d
+
+    if isinstance(geometry, o3d.geometry.TriangleMesh):
+        return {"positions": 3, **({"normals": 3} if geometry.has_vertex_normals() else {}),
+                **({"colors": 3} if geometry.has_vertex_colors() else {})}
+    if isinstance(geometry, o3d.geometry.PointCloud):
+        return {"positions": 3, **({"normals": 3} if geometry.has_normals() else {}),
+                **({"colors": 3} if geometry.has_colors() else {})}
+    attrs = getattr(geometry, "vertex", None) if isinstance(geometry, o3d.t.geometry.TriangleMesh) else \
+        getattr(geometry, "point", None) if isinstance(geometry, o3d.t.geometry.PointCloud) else None
+    if attrs is None:
+        return {}
+    return {k: int(np.prod(attrs[k].shape[1:], dtype=np.int64)) for k in attrs}
+
+
+def need_attribute(columns, name):
+    """The column count of attribute ``name`` in ``columns`` (from :func:`attribute_columns`), or
+    the MeshError a filter raises when the attribute is missing.
+
+    Examples
+    --------
+    >>> from o3dheat.filters import need_attribute
+    >>> need_attribute({"positions": 3, "height": 1}, "height")
+    1
+    >>> need_attribute({"positions": 3}, "height")
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: no vertex attribute 'height'; this geometry has: positions
+    """
+    if name not in columns:
+        raise MeshError(f"no vertex attribute {name!r}; this geometry has: {', '.join(sorted(columns))}")
+    return columns[name]
 
 
 # ------------------------------------------------------------------------------- parameters
@@ -568,11 +658,56 @@ class Chain:
         >>> "height" in out.vertex
         True
         """
+        self.check(mesh)
         for i, step in enumerate(self.steps):
             if progress:
                 progress(i, step)
             mesh = step(mesh)
         return mesh
+
+    def check(self, geometry):
+        """Check the chain against a geometry's attributes before any work: a step that reads an
+        attribute the steps before it do not make, or a column it does not have, is refused at
+        once (not after an eigensolve of a million vertices, or of every file of a batch).
+
+        Each filter with a ``plan(columns)`` method takes the attributes' column counts
+        (:func:`attribute_columns`), raises the MeshError its run would raise, and returns the
+        column counts of what it writes. Checking stops at the first filter without one (a plugin
+        may have none): what follows it is checked when it runs, as always.
+
+        Parameters
+        ----------
+        geometry : Open3D TriangleMesh or PointCloud
+
+        Returns
+        -------
+        dict
+            The attributes and column counts after the last planned step.
+
+        Raises
+        ------
+        MeshError
+            Naming the step (its position and filter) and the problem.
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat.filters as flt
+        >>> chain = flt.Chain([("hks", {"k": 20}), ("colorize", {"attribute": "hks"})])
+        >>> chain.check(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 4))
+        Traceback (most recent call last):
+        ...
+        o3dheat.errors.MeshError: step 2 (colorize): attribute 'hks' has 10 columns (0..9): pick one with column=N (0 is the first, -1 the last)
+        """
+        columns = attribute_columns(geometry)
+        for i, step in enumerate(self.steps):
+            plan = getattr(step, "plan", None)
+            if plan is None:
+                break
+            try:
+                columns = {**columns, **plan(dict(columns))}
+            except MeshError as e:
+                raise MeshError(f"step {i + 1} ({_name_of(step)}): {e}") from None
+        return columns
 
     def map(self, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", binary=True, progress=None):
         """Run the chain on many files, one task per file, resumable: :func:`o3dheat.batch.run`.

@@ -446,3 +446,82 @@ def test_a_literal_choice_of_none_is_written_none():
     out = o3dheat.filters.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8), "hks",
                                 **{"normalize": parse_value("none", tp), "k": 6, "scales": 2})
     assert out.vertex["hks"].shape[1] == 2
+
+
+# ------------------------------------------------------------------ a chain checked before it runs
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+
+from o3dheat.errors import MeshError  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_ATTRS = ["height", "positions", "hks", "height_smooth", "nothing", "mean_curvature"]
+_COLUMNS = st.sampled_from([None, None, 0, -1, 2, 5])
+_TIMES = st.sampled_from([None, (0.01,), (0.01, 0.1)])
+_STEP = st.one_of(
+    st.builds(lambda kind, a, out: ("scalar", {"kind": kind, **({"attribute": a} if kind == "noise" else {}),
+                                                **({"output": out} if out else {})}),
+              st.sampled_from(["height", "mean_curvature", "noise"]), st.sampled_from(_ATTRS),
+              st.sampled_from([None, "hks"])),
+    st.builds(lambda s, t: ("hks", {"k": 8, "scales": s, **({"times": t} if t else {})}),
+              st.integers(1, 3), _TIMES),
+    st.builds(lambda a, c, s, t: ("heat_smooth", {"attribute": a, "column": c, "k": 8, "scales": s,
+                                                  **({"times": t} if t else {})}),
+              st.sampled_from(_ATTRS), _COLUMNS, st.integers(1, 3), _TIMES),
+    st.builds(lambda a, c: ("colorize", {"attribute": a, "column": c}), st.sampled_from(_ATTRS), _COLUMNS),
+    st.builds(lambda a, c: ("critical_points", {"attribute": a, "column": c}), st.sampled_from(_ATTRS), _COLUMNS),
+    st.builds(lambda a, c: ("feature_approx", {"attribute": a, "column": c, "k": 8}),
+              st.sampled_from(_ATTRS), _COLUMNS),
+)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(steps=st.lists(_STEP, min_size=1, max_size=4))
+def test_chain_check_predicts_every_run(steps):
+    """Chain.check refuses exactly the chains whose run raises a MeshError, with the run's message,
+    and otherwise predicts every attribute's column count."""
+    mesh = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6), "scalar", kind="height")
+    chain = flt.Chain(steps)
+    try:
+        planned = chain.check(mesh)
+        planned_error = None
+    except MeshError as e:
+        planned_error = str(e)
+    run_error, out = None, mesh
+    for i, step in enumerate(chain):
+        try:
+            out = step(out)
+        except MeshError as e:
+            run_error = f"step {i + 1} ({flt._name_of(step)}): {e}"
+            break
+    assert planned_error == run_error
+    if run_error is None:
+        assert planned == flt.attribute_columns(out)
+
+
+def test_chain_check_stops_at_a_filter_without_a_plan():
+    import dataclasses
+
+    @dataclasses.dataclass(frozen=True)
+    class Plugin:  # a third-party filter of the simplest kind: no plan
+        def __call__(self, geometry):
+            return geometry
+
+    mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6)
+    chain = flt.Chain([("hks", {"k": 8, "scales": 2})])
+    chain.steps.append(Plugin())
+    chain.append("colorize", attribute="made_by_the_plugin")  # not checkable: left to its run
+    assert chain.check(mesh) == {"positions": 3, "hks": 2}
+    with pytest.raises(MeshError, match="no vertex attribute 'made_by_the_plugin'"):
+        chain(mesh)
+
+
+def test_a_chain_refuses_before_any_work(monkeypatch):
+    from o3dheat import spectrum
+
+    monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("an eigensolve ran"))
+    chain = flt.Chain([("hks", {"k": 8}), ("colorize", {"attribute": "hks"})])
+    with pytest.raises(MeshError, match=r"step 2 \(colorize\): attribute 'hks' has 10 columns"):
+        chain(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6))
+    with pytest.raises(MeshError, match=r"step 1 \(colorize\): unknown colormap 'nope'"):
+        flt.Chain([("colorize", {"attribute": "positions", "column": 0, "colormap": "nope"})]).check(
+            o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6))
