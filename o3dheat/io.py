@@ -279,10 +279,22 @@ def _write(path, attrs, F, binary, overwrite):
             face = np.empty(len(F), dtype=[("vertex_indices", "i4", (3,))])
             face["vertex_indices"] = F
             elements.append(PlyElement.describe(face, "face"))
-        ply = PlyData(elements, text=not binary, comments=comments)
+        ply = PlyData(elements, text=not binary, byte_order="<", comments=comments)
     except (ValueError, TypeError) as e:  # pragma: no cover - every known case is refused above
         raise MeshError(f"cannot write {path}: {e}") from e
-    atomic_write(path, ply.write)
+    atomic_write(path, ply.write if not binary else lambda fh: _write_binary_ply(fh, ply, vert, F))
+
+
+def _write_binary_ply(fh, ply, vert, F):
+    """What ``ply.write`` writes for a little-endian binary PLY of ``vert`` and triangles ``F``,
+    byte for byte (tested), but the triangles in one block: plyfile writes list properties face
+    by face (8 s for 2M faces)."""
+    fh.write(ply.header.encode("ascii") + b"\n")
+    fh.write(vert.astype(ply["vertex"].dtype("<"), copy=False).tobytes())
+    if F is not None:
+        block = np.empty(len(F), dtype=np.dtype([("n", "u1"), ("v", "<i4", (3,))]))  # packed: 13 bytes
+        block["n"], block["v"] = 3, F
+        fh.write(block.tobytes())
 
 
 def atomic_write(path, write):
@@ -574,13 +586,27 @@ def _restore(arr, dtype):
     return arr.astype(dtype.newbyteorder("="))
 
 
+#: face lists read as fixed-size triangles in one block (plyfile's memory-mapped path); polygons
+#: of other sizes fall back to plyfile's per-face reading (60x slower: 9 s for 2M faces)
+_TRIANGLE_LISTS = {"face": {"vertex_indices": 3, "vertex_index": 3}}
+
+
+def _read_plydata(path):
+    """plyfile's PlyData of a file, all-triangle face lists read in one block."""
+    from plyfile import PlyData, PlyElementParseError
+
+    try:
+        return PlyData.read(str(path), known_list_len=_TRIANGLE_LISTS)
+    except PlyElementParseError:  # polygons (or a damaged file: the face-by-face read says where)
+        return PlyData.read(str(path))
+
+
 def _read_ply(path):
     import open3d as o3d
-    from plyfile import PlyData
 
     _check_ply_header(path)
     try:
-        ply = PlyData.read(str(path))
+        ply = _read_plydata(path)
         vert = ply["vertex"].data
         face = ply["face"].data if "face" in [e.name for e in ply.elements] else None
     except Exception as e:

@@ -7,7 +7,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import o3dheat
-from o3dheat.io import read_mesh, write_mesh
+from o3dheat.io import read_mesh, write_geometry, write_mesh
 
 
 @pytest.fixture
@@ -42,18 +42,24 @@ def test_plain_readers_see_the_columns(tmp_path, mesh):
     assert {"x", "red", "f", "hks_0", "hks_3", "label"} <= set(names)
 
 
-def test_write_is_atomic(tmp_path, mesh, monkeypatch):
+@pytest.mark.parametrize("binary", [True, False])
+def test_write_is_atomic(tmp_path, mesh, monkeypatch, binary):
     p = tmp_path / "m.ply"
     p.write_bytes(b"previous content")
     import plyfile
 
-    def boom(self, stream):
-        stream.write(b"partial")
+    import o3dheat.io
+
+    def boom(*args):
+        args[0 if binary else 1].write(b"partial")  # (fh, ply, vert, F) or (self, stream)
         raise OSError("disk full")
 
-    monkeypatch.setattr(plyfile.PlyData, "write", boom)
+    if binary:
+        monkeypatch.setattr(o3dheat.io, "_write_binary_ply", boom)
+    else:
+        monkeypatch.setattr(plyfile.PlyData, "write", boom)
     with pytest.raises(OSError):
-        write_mesh(p, mesh)
+        write_mesh(p, mesh, binary=binary)
     assert p.read_bytes() == b"previous content"
     assert [x.name for x in tmp_path.iterdir()] == ["m.ply"]
 
@@ -647,3 +653,30 @@ def test_crafted_npz_is_refused(tmp_path):
     np.savez(p, positions=np.zeros((3, 3)), vertex_positions=np.ones((3, 3)))
     with pytest.raises(o3dheat.MeshError, match="'vertex_positions'"):
         read_geometry(p)
+
+
+@pytest.mark.parametrize("faces", [True, False])
+def test_binary_ply_is_plyfiles_own_bytes_and_reads_back_the_same_both_ways(tmp_path, mesh, monkeypatch, faces):
+    """The block writer of triangles gives what plyfile writes face by face, and the block reader
+    of triangle lists what plyfile reads face by face."""
+    import plyfile
+
+    import o3dheat.io
+
+    geometry = mesh if faces else o3d.t.geometry.PointCloud(mesh.vertex.positions)
+    fast, slow = tmp_path / "fast.ply", tmp_path / "slow.ply"
+    write_geometry(fast, geometry)
+    with monkeypatch.context() as m:
+        m.setattr(o3dheat.io, "_write_binary_ply", lambda fh, ply, vert, F: ply.write(fh))
+        write_geometry(slow, geometry)
+    assert fast.read_bytes() == slow.read_bytes()
+    a = o3dheat.io.read_geometry(fast)
+    monkeypatch.setattr(o3dheat.io, "_TRIANGLE_LISTS", {})  # plyfile's face-by-face reading
+    b = o3dheat.io.read_geometry(fast)
+    attrs = (lambda g: g.vertex) if faces else (lambda g: g.point)
+    assert sorted(attrs(a)) == sorted(attrs(b))
+    for k in attrs(a):
+        assert np.array_equal(attrs(a)[k].numpy(), attrs(b)[k].numpy())
+    if faces:
+        assert np.array_equal(a.triangle.indices.numpy(), b.triangle.indices.numpy())
+        assert len(plyfile.PlyData.read(str(fast))["face"].data) == len(mesh.triangle.indices)
