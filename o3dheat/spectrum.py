@@ -333,19 +333,24 @@ def _fix_signs(X, chunk=16):
     return X
 
 
-def _residuals(L, B, lam, X, chunk=16):
+def _residuals(L, B, lam, X, chunk=16, b_norms=False):
     """Normwise backward errors, computed in column chunks (no n x k temporaries), the chunks
-    shared out among threads (each column is computed whole by one thread)."""
+    shared out among threads (each column is computed whole by one thread); with ``b_norms``, also
+    the columns' B-norms squared ``xᵀ B x`` (from the same products)."""
     nL = abs(L).sum(axis=0).max()
     nB = abs(B).sum(axis=0).max()
     L, B = sp.csr_matrix(L), sp.csr_matrix(B)
 
     def backward_errors(a, z):
         Xc = np.ascontiguousarray(X[:, a:z])
-        R = L @ Xc - (B @ Xc) * lam[a:z]
-        return np.linalg.norm(R, axis=0) / ((nL + np.abs(lam[a:z]) * nB) * np.linalg.norm(Xc, axis=0) + 1e-300)
+        BXc = B @ Xc
+        R = L @ Xc - BXc * lam[a:z]
+        res = np.linalg.norm(R, axis=0) / ((nL + np.abs(lam[a:z]) * nB) * np.linalg.norm(Xc, axis=0) + 1e-300)
+        return res, np.einsum("ij,ij->j", Xc, BXc)
 
-    return np.concatenate(parallel.run(backward_errors, parallel.row_parts(X.shape[1], chunk)))
+    parts = parallel.run(backward_errors, parallel.row_parts(X.shape[1], chunk))
+    res = np.concatenate([p[0] for p in parts])
+    return (res, np.concatenate([p[1] for p in parts])) if b_norms else res
 
 
 def _b_orthonormalize(X, B):
@@ -757,11 +762,8 @@ def _cache_valid(cached, L, B, k, tol):
         return False
     if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(X))) or np.any(np.diff(lam) < 0) or lam[0] < 0:
         return False
-    BX = B @ X
-    if np.abs(np.einsum("ij,ij->j", X, BX) - 1).max() > 1e-6:
-        return False
-    res = _residuals(L, B, lam, X)
-    return bool(res.max() <= max(100 * tol, 1e-6))
+    res, norms = _residuals(L, B, lam, X, b_norms=True)
+    return bool(np.abs(norms - 1).max() <= 1e-6 and res.max() <= max(100 * tol, 1e-6))
 
 
 def _cache_save(folder, key, lam, X, backend, sigma, res):
