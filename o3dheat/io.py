@@ -470,11 +470,39 @@ def read_geometry(path):
             if "positions" not in pc.point or len(pc.point.positions) == 0:
                 raise MeshError(f"{path}: no points could be read (unreadable or empty file)")
             return pc
+        if suffix == ".stl":
+            mesh = _read_binary_stl(path)
+            if mesh is not None:
+                return mesh
         legacy = o3d.io.read_triangle_mesh(str(path))
         if len(legacy.triangles) == 0:
             raise MeshError(f"{path}: no triangles could be read (unreadable or empty file)")
         return o3d.t.geometry.TriangleMesh.from_legacy(legacy)
     return _read_ply(path)
+
+
+_STL_TRIANGLE = np.dtype([("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
+
+
+def _read_binary_stl(path):
+    """A binary STL as a TriangleMesh whose every triangle has its own three vertices (what the
+    format stores; o3dheat welds them where it computes), read in one block: Open3D's reader
+    takes 6 s for 2M triangles. None for an ASCII STL (left to Open3D): a binary STL is an 80-byte
+    header, a triangle count and 50 bytes per triangle, so its size tells it apart."""
+    import open3d as o3d
+
+    size = path.stat().st_size
+    if size < 84:
+        return None
+    with open(path, "rb") as fh:
+        fh.seek(80)
+        count = int(np.frombuffer(fh.read(4), "<u4")[0])
+        if count == 0 or size != 84 + _STL_TRIANGLE.itemsize * count:
+            return None
+        tris = np.fromfile(fh, dtype=_STL_TRIANGLE, count=count)
+    V = tris["corners"].reshape(-1, 3).astype(np.float64)
+    F = np.arange(len(V), dtype=np.int64).reshape(-1, 3)
+    return o3d.t.geometry.TriangleMesh(o3d.core.Tensor(V), o3d.core.Tensor(F))
 
 
 _PLY_SIZES = {"char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2,

@@ -680,3 +680,28 @@ def test_binary_ply_is_plyfiles_own_bytes_and_reads_back_the_same_both_ways(tmp_
     if faces:
         assert np.array_equal(a.triangle.indices.numpy(), b.triangle.indices.numpy())
         assert len(plyfile.PlyData.read(str(fast))["face"].data) == len(mesh.triangle.indices)
+
+
+def test_binary_stl_is_read_in_one_block_as_open3d_reads_it(tmp_path):
+    """Same triangles (as coordinates) as Open3D's STL reader, every triangle with its own three
+    vertices; an ASCII STL is still read by Open3D."""
+    legacy = o3d.geometry.TriangleMesh.create_torus(1.0, 0.4, 30, 12)
+    legacy.compute_triangle_normals()
+    path = tmp_path / "t.stl"
+    o3d.io.write_triangle_mesh(str(path), legacy)
+    ours = o3dheat.io.read_geometry(path)
+    V, F = ours.vertex.positions.numpy(), ours.triangle.indices.numpy()
+    assert V.dtype == np.float64 and np.array_equal(F, np.arange(3 * len(legacy.triangles)).reshape(-1, 3))
+    theirs = o3d.io.read_triangle_mesh(str(path))
+    Vo, Fo = np.asarray(theirs.vertices), np.asarray(theirs.triangles)
+    assert np.array_equal(V[F], Vo[Fo])  # the same corners, triangle by triangle
+    ascii_path = tmp_path / "a.stl"  # Open3D writes no ASCII STL
+    corners = "".join("facet normal 0 0 1\n outer loop\n" + "".join(f"  vertex {x!r} {y!r} {z!r}\n" for x, y, z in t)
+                      + " endloop\nendfacet\n" for t in Vo[Fo].astype(np.float32).tolist())
+    ascii_path.write_text("solid t\n" + corners + "endsolid t\n")
+    assert o3dheat.io._read_binary_stl(ascii_path) is None
+    a = o3dheat.io.read_geometry(ascii_path)
+    assert len(a.triangle.indices) == len(legacy.triangles)
+    (tmp_path / "empty.stl").write_bytes(bytes(84))  # a binary STL of no triangles
+    with pytest.raises(o3dheat.MeshError, match="no triangles could be read"):
+        o3dheat.io.read_geometry(tmp_path / "empty.stl")
