@@ -254,24 +254,35 @@ def _mix64(x):
 
 def _first_copies(P):
     """(m,) int64: for each row of ``P`` (m, 3), the smallest index of a row with exactly the same
-    float64 values (itself when unique; -0.0 equals 0.0). A 64-bit hash of the coordinate bits
-    (well mixed: grid-like coordinates, whose low bits are zeros, do not collide) finds the
-    candidates, and only the rows whose hash repeats pay for an exact ``np.unique``."""
+    float64 values (itself when unique; -0.0 equals 0.0). Rows are sorted by a 64-bit hash of
+    their coordinate bits (well mixed: grid-like coordinates, whose low bits are zeros, do not
+    collide), stably, so that each run of equal hashes starts at its smallest index; each row is
+    then compared exactly with its run's first. Only the rows of a run where that fails (a hash
+    collision, or NaN) pay for an exact ``np.unique``. An STL's 6M corners: 1.3 s instead of 7 s."""
     m = len(P)
     idx = np.arange(m, dtype=np.int64)
     if m < 2:
         return idx
-    bits = (np.ascontiguousarray(P, dtype=np.float64) + 0.0).view(np.uint64)
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    bits = (P + 0.0).view(np.uint64)
     with np.errstate(over="ignore"):
         h = _mix64(_mix64(_mix64(bits[:, 0]) ^ bits[:, 1]) ^ bits[:, 2])
-    hs = np.sort(h)
-    repeated = hs[1:][hs[1:] == hs[:-1]]
-    if len(repeated) == 0:
+    order = np.argsort(h, kind="stable")
+    hs = h[order]
+    start = np.empty(m, bool)
+    start[0], start[1:] = True, hs[1:] != hs[:-1]
+    if start.all():  # no hash repeats: no row repeats
         return idx
-    rows = np.flatnonzero(np.isin(h, repeated))  # equal rows have equal hashes: all in here
-    # the index of the first occurrence is the smallest (np.unique sorts stably when asked for it)
-    _, first, inv = np.unique(P[rows], axis=0, return_index=True, return_inverse=True)
-    idx[rows] = rows[first[inv.reshape(-1)]]
+    run = np.cumsum(start) - 1
+    first = order[start][run]  # for each sorted row, the first (smallest) index of its run
+    same = np.all(P[order] == P[first], axis=1)
+    idx[order] = first
+    if not same.all():  # a collision (different rows, one hash) or NaN: those runs exactly
+        bad = np.zeros(int(run[-1]) + 1, bool)
+        bad[run[~same]] = True
+        rows = np.sort(order[bad[run]])
+        _, first_exact, inv = np.unique(P[rows], axis=0, return_index=True, return_inverse=True)
+        idx[rows] = rows[first_exact[inv.reshape(-1)]]
     return idx
 
 

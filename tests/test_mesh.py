@@ -402,7 +402,17 @@ def test_first_copies_on_grid_coordinates_hash_without_collisions_and_match_brut
     Q = np.concatenate([P[:500], P[rng.integers(0, 500, 40)], -0.0 * P[:1]])  # 40 copies, and -0.0
     rng.shuffle(Q)
     got = m._first_copies(Q)
-    assert calls and max(calls) < 100  # only the repeated rows are compared exactly
+    assert calls == []  # copies are confirmed against their hash run's first row, not by np.unique
     first = {}
     expected = np.array([first.setdefault(tuple(q + 0.0), i) for i, q in enumerate(Q)])
     np.testing.assert_array_equal(got, expected)
+    # a hash that collides everywhere (the worst case): the colliding runs are compared exactly
+    monkeypatch.setattr(m, "_mix64", lambda x: x & np.uint64(3))
+    np.testing.assert_array_equal(m._first_copies(Q), expected)
+    assert calls and max(calls) <= len(Q)
+    R = np.concatenate([Q[:5], [[np.nan, 0.0, 0.0]], Q[:2], [[np.nan, 0.0, 0.0]]])  # NaN equals nothing
+    monkeypatch.setattr(m, "_mix64", lambda x: x)
+    first = {}
+    expected = np.array([i if np.isnan(r).any() else first.setdefault(tuple(r + 0.0), i) for i, r in enumerate(R)])
+    got = m._first_copies(R)
+    np.testing.assert_array_equal(got[~np.isnan(R).any(1)], expected[~np.isnan(R).any(1)])
