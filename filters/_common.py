@@ -163,8 +163,9 @@ class Site:
         values = np.ascontiguousarray(values)
         if len(values) != self.n:  # pragma: no cover - a filter bug
             raise AssertionError(f"{name}: {len(values)} rows for {self.n} vertices")
-        if name in ("positions",):
-            raise MeshError(f"refusing to overwrite {name!r}")
+        from o3dheat.filters import check_writable
+
+        check_writable(name)
         self.attrs[name] = self.o3d.core.Tensor(values)
 
     def result(self):

@@ -212,9 +212,12 @@ class _Named(logging.Filter):
 
 def _message(e):
     """An error as one line: o3dheat's own errors say what was wrong as they are, others with
-    their type."""
-    text = " ".join(str(e).split()) or repr(e)
-    return text if isinstance(e, (MeshError, SolverError)) else f"{type(e).__name__}: {text}"
+    their type (:func:`o3dheat.cluster.task_error`: a Dask worker's death with its usual cause)."""
+    from .cluster import task_error
+
+    if isinstance(e, (MeshError, SolverError)):
+        return " ".join(str(e).split()) or repr(e)
+    return task_error(e)
 
 
 # ------------------------------------------------------------------------------- the record
@@ -337,7 +340,7 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
     """
     import pandas as pd
 
-    from .cluster import progress_bar, session, task_error
+    from .cluster import progress_bar, session
 
     chain, inputs, dsts, record = _preflight(chain, paths, out_dir, overwrite, suffix)
     rows = [[str(s), str(d), "skipped", 0.0, ""] for s, d in zip(inputs, dsts)]
@@ -379,7 +382,7 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
                     try:
                         result = fut.result()
                     except Exception as e:  # the worker died (KilledWorker), was cancelled...
-                        result = ("failed", 0.0, task_error(e))
+                        result = ("failed", 0.0, _message(e))
                     done(i, result)
     finally:
         if bar is not None:

@@ -41,7 +41,7 @@ from .errors import MeshError
 
 __all__ = ["GROUP", "names", "describe", "get", "apply", "Chain", "Parameter", "OneOf", "shared_spectrum",
            "set_disk_cache", "parse_value", "refresh", "one_column", "check_column", "attribute_columns",
-           "need_attribute", "plain_text"]
+           "need_attribute", "check_writable", "PROTECTED", "plain_text"]
 
 GROUP = "o3dheat.filters"
 
@@ -405,6 +405,34 @@ def attribute_columns(geometry):
     return {k: int(np.prod(attrs[k].shape[1:], dtype=np.int64)) for k in attrs}
 
 
+#: vertex attributes no filter writes (the geometry itself)
+PROTECTED = ("positions",)
+
+
+def check_writable(name):
+    """Refuse to write a vertex attribute of :data:`PROTECTED` (a MeshError), as every filter does.
+
+    Examples
+    --------
+    >>> from o3dheat.filters import check_writable
+    >>> check_writable("height")
+    >>> check_writable("positions")
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: refusing to overwrite 'positions'
+    """
+    if name in PROTECTED:
+        raise MeshError(f"refusing to overwrite {name!r}")
+
+
+def _plan_of(step):
+    """A filter's ``plan``, bound, if the class that defines its ``__call__`` defines one (a
+    subclass that runs differently does not inherit its parent's plan), else None."""
+    owner = next((c for c in type(step).__mro__ if "__call__" in c.__dict__), None)
+    plan = owner.__dict__.get("plan") if owner is not None else None
+    return (lambda columns: plan(step, columns)) if callable(plan) else None
+
+
 def need_attribute(columns, name):
     """The column count of attribute ``name`` in ``columns`` (from :func:`attribute_columns`), or
     the MeshError a filter raises when the attribute is missing.
@@ -672,8 +700,10 @@ class Chain:
 
         Each filter with a ``plan(columns)`` method takes the attributes' column counts
         (:func:`attribute_columns`), raises the MeshError its run would raise, and returns the
-        column counts of what it writes. Checking stops at the first filter without one (a plugin
-        may have none): what follows it is checked when it runs, as always.
+        column counts of what it writes (which may not be ``positions``: :func:`check_writable`).
+        Checking stops at the first filter without one (a plugin may have none; a subclass that
+        defines its own ``__call__`` but not its own ``plan`` has none either): what follows it is
+        checked when it runs, as always.
 
         Parameters
         ----------
@@ -700,11 +730,14 @@ class Chain:
         """
         columns = attribute_columns(geometry)
         for i, step in enumerate(self.steps):
-            plan = getattr(step, "plan", None)
+            plan = _plan_of(step)
             if plan is None:
                 break
             try:
-                columns = {**columns, **plan(dict(columns))}
+                written = plan(dict(columns))
+                for name in written:
+                    check_writable(name)
+                columns = {**columns, **written}
             except MeshError as e:
                 raise MeshError(f"step {i + 1} ({_name_of(step)}): {e}") from None
         return columns

@@ -91,10 +91,10 @@ def memory_limits():
     * ``"system"``: the system's available memory (``MemAvailable`` of /proc/meminfo);
     * ``"cgroup"``: a memory cgroup's limit (a container's ``--memory``, a systemd or batch
       scheduler's slice; cgroup v2 ``memory.max`` or v1 ``memory.limit_in_bytes``, of the process's
-      group and every group above it) less its usage, page cache that can be dropped not counted
-      as used. The kernel kills a process of a group that reaches its limit;
-    * ``"Dask worker"``: inside a Dask worker with a memory limit, the fraction of it at which its
-      nanny restarts the worker (``distributed.worker.memory.terminate``, 95% by default) less the
+      group and every group above it) less its usage, the page cache (but shared memory) not
+      counted as used: the kernel reclaims it before it kills. The kernel kills a process of a group that reaches its limit;
+    * ``"Dask worker"``: inside a Dask worker that has a nanny and a memory limit, the fraction of
+      it at which the nanny restarts the worker (``distributed.worker.memory.terminate``, 95% by default) less the
       process's resident memory. A worker that is restarted kills its task, and Dask retries it on
       another worker, which dies the same way;
     * ``"address space"``: an address-space limit (``ulimit -v``) less the process's address space.
@@ -141,9 +141,10 @@ def _statm(field):
         return int(fh.read().split()[field]) * resource.getpagesize()
 
 
-#: cgroup v2 and v1 files: limit, usage, and the memory.stat key of droppable page cache
-_CGROUP_FILES = {"v2": ("memory.max", "memory.current", "inactive_file"),
-                 "v1": ("memory.limit_in_bytes", "memory.usage_in_bytes", "total_inactive_file")}
+#: cgroup v2 and v1 files: limit, usage, and the memory.stat keys of the page cache (which the
+#: kernel reclaims before it kills) and of the shared memory counted in it (which it cannot)
+_CGROUP_FILES = {"v2": ("memory.max", "memory.current", ("file", "shmem")),
+                 "v1": ("memory.limit_in_bytes", "memory.usage_in_bytes", ("total_cache", "total_shmem"))}
 
 
 def _cgroup_room(proc="/proc/self/cgroup", root="/sys/fs/cgroup"):
@@ -180,7 +181,7 @@ def _cgroup_room(proc="/proc/self/cgroup", root="/sys/fs/cgroup"):
     return min(rooms) if rooms else None
 
 
-def _group_room(group, limit_file, usage_file, cache_key):
+def _group_room(group, limit_file, usage_file, cache_keys):
     try:
         text = (group / limit_file).read_text().strip()
         if text == "max":
@@ -191,21 +192,21 @@ def _group_room(group, limit_file, usage_file, cache_key):
         usage = int((group / usage_file).read_text())
     except (OSError, ValueError):
         return None
-    cache = 0
+    stat = {}
     try:
         for line in (group / "memory.stat").read_text().splitlines():
             key, _, value = line.partition(" ")
-            if key == cache_key:
-                cache = int(value)
-                break
+            if key in cache_keys:
+                stat[key] = int(value)
     except (OSError, ValueError):
         pass
+    cache = max(stat.get(cache_keys[0], 0) - stat.get(cache_keys[1], 0), 0)
     return max(limit - usage + cache, 0)
 
 
 def _dask_worker_room():
-    """Bytes left before this Dask worker's nanny restarts it, or None (not in a Dask worker, no
-    memory limit, or restarts disabled)."""
+    """Bytes left before this Dask worker's nanny restarts it, or None (not in a Dask worker's task,
+    a worker without a nanny, which nothing restarts, no memory limit, or restarts disabled)."""
     import sys
 
     if "distributed" not in sys.modules:  # never imported: not a worker
@@ -215,6 +216,8 @@ def _dask_worker_room():
         from distributed import get_worker
 
         worker = get_worker()
+        if not getattr(worker, "nanny", None):  # no nanny (in-process workers, --no-nanny): no restart
+            return None
         limit = getattr(getattr(worker, "memory_manager", None), "memory_limit", None)
         fraction = dask.config.get("distributed.worker.memory.terminate", 0.95)
     except (ImportError, ValueError, AttributeError):
@@ -235,10 +238,10 @@ _LIMIT_NAMES = {"cgroup": " (under the memory limit of this process's cgroup: a 
 def check_memory(needed, what, advice):
     """Raise :class:`OutOfMemory` when ``needed`` bytes exceed what this process may allocate
     (the message names the limit: the system's memory, a cgroup's, a Dask worker's, ulimit -v)."""
-    have = available_memory()
-    if have is not None and needed > have:
-        room = memory_limits()
-        name = min(room, key=room.get) if room else "system"
+    room = memory_limits()
+    name = min(room, key=room.get) if room else None
+    if name is not None and needed > room[name]:
+        have = room[name]
         where = _LIMIT_NAMES.get(name, "")
         raise OutOfMemory(f"{what} needs about {needed / 2**30:.2f} GiB, but only {have / 2**30:.2f} GiB "
                           f"are available{where}: {advice}")

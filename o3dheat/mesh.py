@@ -258,7 +258,7 @@ def _first_copies(P):
     their coordinate bits (well mixed: grid-like coordinates, whose low bits are zeros, do not
     collide), stably, so that each run of equal hashes starts at its smallest index; each row is
     then compared exactly with its run's first. Only the rows of a run where that fails (a hash
-    collision, or NaN) pay for an exact ``np.unique``. An STL's 6M corners: 1.3 s instead of 7 s."""
+    collision, or NaN) pay for an exact ``np.unique``. An STL's 6M corners: 2.4 s instead of 7 s."""
     m = len(P)
     idx = np.arange(m, dtype=np.int64)
     if m < 2:

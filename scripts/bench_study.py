@@ -114,7 +114,14 @@ def main(argv=None):
             continue
         print(f"| {label} | {t:.1f} | {c:.1f} | {t_seq / t:.2f}x | {(t - t_seq / args.workers) / tasks:+.2f} s | "
               f"{start:.1f} + {warm:.1f} s | {t_seq / (t + start + warm):.2f}x |")
-    print(f"\ntables identical: {same}; failed tasks: {int((tables[0]['error'] != '').sum())}")
+    print(f"\ntables identical: {same}; failed tasks: {sum(int((t['error'] != '').sum()) for t in tables)}")
+    for i, t in enumerate(tables[1:], 1):  # what differs, to find out why
+        if not t.equals(tables[0]):
+            diff = t.ne(tables[0]) & ~(t.isna() & tables[0].isna())
+            rows = diff.any(axis=1)
+            print(f"run {i} differs from run 0 in {int(rows.sum())} rows, columns "
+                  f"{[c for c in t.columns if diff[c].any()]}:\n{t[rows].head(5).to_string()}\n"
+                  f"{tables[0][rows].head(5).to_string()}")
     return 0 if same else 1
 
 

@@ -454,32 +454,57 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from o3dheat.errors import MeshError  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-_ATTRS = ["height", "positions", "hks", "height_smooth", "nothing", "mean_curvature"]
+_ATTRS = ["height", "positions", "hks", "height_smooth", "nothing", "mean_curvature", "normals", "colors", "t4",
+          "out"]
 _COLUMNS = st.sampled_from([None, None, 0, -1, 2, 5])
 _TIMES = st.sampled_from([None, (0.01,), (0.01, 0.1)])
+_OUT = st.sampled_from([None, None, "out", "positions", "height"])
+
+
+def _with_output(name, params, out):
+    return name, {**params, **({"output": out} if out else {})}
+
+
 _STEP = st.one_of(
-    st.builds(lambda kind, a, out: ("scalar", {"kind": kind, **({"attribute": a} if kind == "noise" else {}),
-                                                **({"output": out} if out else {})}),
-              st.sampled_from(["height", "mean_curvature", "noise"]), st.sampled_from(_ATTRS),
-              st.sampled_from([None, "hks"])),
-    st.builds(lambda s, t: ("hks", {"k": 8, "scales": s, **({"times": t} if t else {})}),
-              st.integers(1, 3), _TIMES),
-    st.builds(lambda a, c, s, t: ("heat_smooth", {"attribute": a, "column": c, "k": 8, "scales": s,
-                                                  **({"times": t} if t else {})}),
-              st.sampled_from(_ATTRS), _COLUMNS, st.integers(1, 3), _TIMES),
-    st.builds(lambda a, c: ("colorize", {"attribute": a, "column": c}), st.sampled_from(_ATTRS), _COLUMNS),
-    st.builds(lambda a, c: ("critical_points", {"attribute": a, "column": c}), st.sampled_from(_ATTRS), _COLUMNS),
+    st.builds(lambda kind, a, out: _with_output("scalar", {"kind": kind, **({"attribute": a} if kind == "noise" else {})},
+                                                out),
+              st.sampled_from(["height", "mean_curvature", "gaussian_curvature", "noise"]), st.sampled_from(_ATTRS),
+              _OUT),
+    st.builds(lambda s, t, out: _with_output("hks", {"k": 8, "scales": s, **({"times": t} if t else {})}, out),
+              st.integers(1, 3), _TIMES, _OUT),
+    st.builds(lambda a, c, s, t, out: _with_output("heat_smooth", {"attribute": a, "column": c, "k": 8, "scales": s,
+                                                                   **({"times": t} if t else {})}, out),
+              st.sampled_from(_ATTRS), _COLUMNS, st.integers(1, 3), _TIMES, _OUT),
+    st.builds(lambda a, c, cmap, out: _with_output("colorize", {"attribute": a, "column": c, "colormap": cmap}, out),
+              st.sampled_from(_ATTRS), _COLUMNS, st.sampled_from(["coolwarm", "viridis", "no-such-map"]), _OUT),
+    st.builds(lambda a, c, out: _with_output("critical_points", {"attribute": a, "column": c}, out),
+              st.sampled_from(_ATTRS), _COLUMNS, _OUT),
     st.builds(lambda a, c: ("feature_approx", {"attribute": a, "column": c, "k": 8}),
               st.sampled_from(_ATTRS), _COLUMNS),
 )
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(steps=st.lists(_STEP, min_size=1, max_size=4))
-def test_chain_check_predicts_every_run(steps):
+def _input(kind):
+    """A small mesh: tensor with a height and an (n, 2, 2) attribute, or legacy with normals and
+    colours (what Open3D's readers give)."""
+    sphere = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6)
+    if kind == "legacy":
+        legacy = sphere.to_legacy()
+        legacy.compute_vertex_normals()
+        legacy.vertex_colors = o3d.utility.Vector3dVector(np.asarray(legacy.vertices) * 0.5 + 0.5)
+        return legacy
+    mesh = flt.apply(sphere, "scalar", kind="height")
+    n = len(mesh.vertex.positions)
+    mesh.vertex["t4"] = o3d.core.Tensor(np.arange(4.0 * n).reshape(n, 2, 2) % 7)
+    return mesh
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(kind=st.sampled_from(["tensor", "legacy"]), steps=st.lists(_STEP, min_size=1, max_size=4))
+def test_chain_check_predicts_every_run(kind, steps):
     """Chain.check refuses exactly the chains whose run raises a MeshError, with the run's message,
     and otherwise predicts every attribute's column count."""
-    mesh = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6), "scalar", kind="height")
+    mesh = _input(kind)
     chain = flt.Chain(steps)
     try:
         planned = chain.check(mesh)
@@ -498,6 +523,19 @@ def test_chain_check_predicts_every_run(steps):
         assert planned == flt.attribute_columns(out)
 
 
+def test_chain_check_on_point_clouds():
+    pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.random.default_rng(1).standard_normal((200, 3))))
+    chain = flt.Chain([("scalar", {"kind": "height"}), ("scalar", {"kind": "noise", "attribute": "height"}),
+                       ("colorize", {"attribute": "height_noisy"})])
+    assert chain.check(pc) == flt.attribute_columns(chain(pc)) == {"positions": 3, "height": 1, "height_noisy": 1,
+                                                                   "colors": 3}
+    legacy = pc.to_legacy()
+    legacy.estimate_normals()
+    assert flt.attribute_columns(legacy) == {"positions": 3, "normals": 3}
+    with pytest.raises(MeshError, match=r"step 1 \(colorize\): attribute 'normals' has 3 columns"):
+        flt.Chain([("colorize", {"attribute": "normals"})]).check(legacy)
+
+
 def test_chain_check_stops_at_a_filter_without_a_plan():
     import dataclasses
 
@@ -506,7 +544,29 @@ def test_chain_check_stops_at_a_filter_without_a_plan():
         def __call__(self, geometry):
             return geometry
 
+    Hks = type(flt.get("hks"))
+
+    @dataclasses.dataclass(frozen=True)
+    class HksPlus(Hks):  # a plugin that runs differently from the filter it extends: no inherited plan
+        def __call__(self, geometry):
+            out = super().__call__(geometry)
+            out.vertex["made_by_the_plugin"] = out.vertex["hks"]
+            return out
+
+    @dataclasses.dataclass(frozen=True)
+    class Planless:  # a field named plan is not a plan
+        plan: str = "none"
+
+        def __call__(self, geometry):
+            return geometry
+
     mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6)
+    grown = flt.Chain([("hks", {"k": 8, "scales": 2})])
+    grown.steps.append(HksPlus(k=8, scales=2))
+    grown.append("colorize", attribute="made_by_the_plugin", column=0)
+    assert grown.check(mesh) == {"positions": 3, "hks": 2}
+    assert "colors" in grown(mesh).vertex
+    assert flt.Chain([Planless(), ("colorize", {"attribute": "x"})]).check(mesh) == {"positions": 3}
     chain = flt.Chain([("hks", {"k": 8, "scales": 2})])
     chain.steps.append(Plugin())
     chain.append("colorize", attribute="made_by_the_plugin")  # not checkable: left to its run

@@ -225,7 +225,7 @@ def test_memory_is_checked_before_factorizing_and_out_of_memory_never_falls_back
     import o3dheat.linalg as la
 
     A = sp.diags([np.full(99, -1.0), np.full(100, 3.0), np.full(99, -1.0)], [-1, 0, 1], format="csc")
-    monkeypatch.setattr(la, "available_memory", lambda: 1000)  # bytes
+    monkeypatch.setattr(la, "memory_limits", lambda: {"system": 1000})  # bytes
     if la._library() is not None:
         with pytest.raises(la.OutOfMemory, match="Cholesky factor .* needs about"):
             la.factorize(A, backend="cholmod")
@@ -280,10 +280,11 @@ def _cgroup_tree(tmp_path, proc_line, groups):
     return str(tmp_path / "cgroup"), str(tmp_path / "fs")
 
 
-def test_cgroup_v2_limit_counts_usage_but_not_droppable_cache(tmp_path):
+def test_cgroup_v2_limit_counts_usage_but_not_reclaimable_cache(tmp_path):
     proc, root = _cgroup_tree(tmp_path, "0::/", {
-        ".": {"memory.max": "1000000\n", "memory.current": "600000\n", "memory.stat": "anon 1\ninactive_file 50000\n"}})
-    assert la._cgroup_room(proc, root) == 1000000 - 600000 + 50000
+        ".": {"memory.max": "1000000\n", "memory.current": "600000\n",
+              "memory.stat": "anon 1\nfile 80000\nactive_file 30000\ninactive_file 50000\nshmem 5000\n"}})
+    assert la._cgroup_room(proc, root) == 1000000 - 600000 + 80000 - 5000  # shared memory is not reclaimed
 
 
 def test_cgroup_v2_without_limit_and_with_a_tighter_parent(tmp_path):
@@ -300,7 +301,7 @@ def test_cgroup_v1_container_without_namespace_and_unlimited(tmp_path):
     # the group's path (the host's) does not exist in the container: its own group is the root
     proc, root = _cgroup_tree(tmp_path, "12:cpu:/\n4:memory:/docker/abc", {
         "memory": {"memory.limit_in_bytes": "3000\n", "memory.usage_in_bytes": "1000\n",
-                   "memory.stat": "cache 9\ntotal_inactive_file 100\n"}})
+                   "memory.stat": "cache 9\ntotal_cache 150\ntotal_shmem 50\ntotal_inactive_file 100\n"}})
     assert la._cgroup_room(proc, root) == 2100
     proc, root = _cgroup_tree(tmp_path / "b", "4:memory:/", {
         "memory": {"memory.limit_in_bytes": "9223372036854771712\n", "memory.usage_in_bytes": "1000\n"}})
@@ -320,7 +321,8 @@ def test_dask_worker_memory_limit_is_a_limit(monkeypatch):
     import types
 
     assert la._dask_worker_room() is None  # not in a worker
-    worker = types.SimpleNamespace(memory_manager=types.SimpleNamespace(memory_limit=10 * 2**30))
+    worker = types.SimpleNamespace(memory_manager=types.SimpleNamespace(memory_limit=10 * 2**30),
+                                   nanny="tcp://127.0.0.1:1")
     monkeypatch.setattr(distributed, "get_worker", lambda: worker)
     left = la._dask_worker_room()
     assert 0 < left < 0.95 * 10 * 2**30 and la.memory_limits()["Dask worker"] == pytest.approx(left, rel=0.01)
@@ -328,5 +330,15 @@ def test_dask_worker_memory_limit_is_a_limit(monkeypatch):
 
     with dask.config.set({"distributed.worker.memory.terminate": False}):  # never restarted: no limit
         assert la._dask_worker_room() is None
-    worker.memory_manager.memory_limit = None
+    worker.nanny = None  # nothing restarts a worker without a nanny (in-process, --no-nanny)
     assert la._dask_worker_room() is None
+    worker.nanny, worker.memory_manager.memory_limit = "tcp://127.0.0.1:1", None
+    assert la._dask_worker_room() is None
+
+
+def test_in_process_dask_workers_have_no_memory_limit_to_fear():
+    pytest.importorskip("distributed")
+    from distributed import Client
+
+    with Client(processes=False, n_workers=1, memory_limit="100MB", dashboard_address=None) as client:
+        assert "Dask worker" not in client.submit(la.memory_limits, pure=False).result()

@@ -455,7 +455,7 @@ def test_eigensolve_refuses_what_does_not_fit_in_memory(monkeypatch, irregular_m
     import o3dheat.linalg as la
     import o3dheat.spectrum as S
 
-    monkeypatch.setattr(la, "available_memory", lambda: 10_000)  # bytes
+    monkeypatch.setattr(la, "memory_limits", lambda: {"system": 10_000})  # bytes
     monkeypatch.setattr(S, "available_memory", lambda: 10_000)
     with pytest.raises(la.OutOfMemory, match="eigenpairs on .* vertices needs about .* GiB"):
         o3dheat.eigensolve(irregular_mesh, k=20, method="lanczos")
