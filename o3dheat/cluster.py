@@ -4,7 +4,8 @@ cluster by address, or in-process; and the progress bar.
 The ``scheduler`` argument of :func:`o3dheat.robustness_study` and :func:`o3dheat.batch.run`:
 
 * ``None``: a local Dask cluster started for the job and closed after it: one worker process per
-  core (``os.cpu_count()``), one thread each, no dashboard (:func:`local_cluster`);
+  core (``os.cpu_count()``), one thread each, each pinned to a core of its own, no dashboard
+  (:func:`local_cluster`);
 * ``"sequential"``: in this process, without Dask;
 * an address (``"tcp://host:8786"``): a running cluster, connected to and disconnected from,
   never shut down;
@@ -35,7 +36,7 @@ _TRIM_ENV = "MALLOC_TRIM_THRESHOLD_"
 _TRIM = f"distributed.nanny.pre-spawn-environ.{_TRIM_ENV}"
 
 
-def local_cluster(n_workers=None):
+def local_cluster(n_workers=None, pin=True):
     """A local Dask cluster of single-threaded worker processes, without a dashboard.
 
     The workers keep glibc's adaptive memory thresholds: they start without
@@ -45,6 +46,11 @@ def local_cluster(n_workers=None):
     ----------
     n_workers : int, optional
         Worker processes (default ``os.cpu_count()``).
+    pin : bool
+        Pin each worker process to a CPU of its own (:class:`o3dheat._dask_worker.PinToCore`),
+        when there are at least as many CPUs available to this process as workers (Linux): the
+        kernel then does not move them between cores, which costs their caches. False lets the
+        kernel place them (better when other work shares the machine).
 
     Returns
     -------
@@ -65,12 +71,19 @@ def local_cluster(n_workers=None):
     n = (os.cpu_count() or 1) if n_workers is None else n_workers
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise MeshError(f"n_workers must be a positive integer, got {n_workers!r}")
+    plugins = ()
+    cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+    if pin and n <= len(cpus):
+        from ._dask_worker import PinToCore
+
+        plugins = (PinToCore(cpus[:n]),)
     # the nannies read the setting when they are made, and the workers inherit this process's
     # environment when they are spawned: both happen here
     saved = os.environ.pop(_TRIM_ENV, None)
     try:
         with dask.config.set({_TRIM: None}):
-            return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+            return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                                plugins=plugins)
     finally:
         if saved is not None:
             os.environ[_TRIM_ENV] = saved

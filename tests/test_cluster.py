@@ -39,3 +39,24 @@ def test_local_cluster_workers_keep_glibc_default_memory_thresholds(monkeypatch)
         env = client.run(lambda: (os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("OMP_NUM_THREADS")))
         assert list(env.values()) == [(None, "1")]
     assert os.environ["MALLOC_TRIM_THRESHOLD_"] == "65536"  # this process's environment is restored
+
+
+def _affinity():
+    return sorted(os.sched_getaffinity(0))
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="CPU affinity is Linux's")
+def test_local_cluster_pins_each_worker_to_a_cpu_of_its_own():
+    pytest.importorskip("distributed")
+    from distributed import Client
+
+    cpus = sorted(os.sched_getaffinity(0))
+    n = min(2, len(cpus))
+    with local_cluster(n) as cluster, Client(cluster) as client:
+        pinned = sorted(cpu for c in client.run(_affinity).values() for cpu in c)
+        in_task = client.submit(_affinity, pure=False).result()  # a task's thread too
+    assert pinned == cpus[:n] and len(in_task) == 1
+    with local_cluster(n, pin=False) as cluster, Client(cluster) as client:
+        assert all(c == cpus for c in client.run(_affinity).values())
+    with local_cluster(len(cpus) + 1) as cluster, Client(cluster) as client:  # more workers than CPUs
+        assert all(c == cpus for c in client.run(_affinity).values())
