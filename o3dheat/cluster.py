@@ -47,7 +47,7 @@ def local_cluster(n_workers=None, pin=True):
     n_workers : int, optional
         Worker processes (default ``os.cpu_count()``).
     pin : bool
-        Pin each worker process to a CPU of its own (:class:`o3dheat._dask_worker.PinToCore`),
+        Pin each worker process to a CPU of its own (:class:`o3dheat.workers.PinToCore`),
         when there are at least as many CPUs available to this process as workers (Linux): the
         kernel then does not move them between cores, which costs their caches. False lets the
         kernel place them (better when other work shares the machine).
@@ -74,7 +74,7 @@ def local_cluster(n_workers=None, pin=True):
     plugins = ()
     cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
     if pin and n <= len(cpus):
-        from ._dask_worker import PinToCore
+        from .workers import PinToCore
 
         plugins = (PinToCore(cpus[:n]),)
     # the nannies read the setting when they are made, and the workers inherit this process's

@@ -1,7 +1,8 @@
 """Worker plugins of o3dheat's local Dask clusters (:func:`o3dheat.cluster.local_cluster`).
 
 Apart from :mod:`o3dheat.cluster` because they subclass Dask's ``WorkerPlugin``: importing
-``distributed`` costs half a second, which ``import o3dheat`` does not pay.
+``distributed`` costs half a second, which ``import o3dheat`` does not pay. Worker processes
+import this module to unpickle the plugins.
 """
 
 from __future__ import annotations
@@ -9,6 +10,8 @@ from __future__ import annotations
 import os
 
 from distributed.diagnostics.plugin import WorkerPlugin
+
+__all__ = ["PinToCore"]
 
 
 class PinToCore(WorkerPlugin):
@@ -27,7 +30,7 @@ class PinToCore(WorkerPlugin):
 
     Examples
     --------
-    >>> from o3dheat._dask_worker import PinToCore
+    >>> from o3dheat.workers import PinToCore
     >>> PinToCore([0, 1]).cpus
     [0, 1]
     """
@@ -38,6 +41,17 @@ class PinToCore(WorkerPlugin):
         self.cpus = sorted(int(c) for c in cpus)
 
     def setup(self, worker):
+        """Pin this worker process's threads (Dask calls it when the worker starts).
+
+        Examples
+        --------
+        >>> import os, types
+        >>> from o3dheat.workers import PinToCore
+        >>> cpus = sorted(os.sched_getaffinity(0))
+        >>> PinToCore(cpus).setup(types.SimpleNamespace(name="not a local worker"))  # left alone
+        >>> sorted(os.sched_getaffinity(0)) == cpus
+        True
+        """
         try:
             i = int(worker.name)
         except (TypeError, ValueError):  # not a worker of a local cluster
