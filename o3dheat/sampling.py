@@ -181,8 +181,17 @@ def warm_up():
 
     m = o3d.geometry.TriangleMesh.create_icosahedron(1.0)
     ms, pymeshlab = _meshset(np.asarray(m.vertices), np.asarray(m.triangles))
-    ms.meshing_isotropic_explicit_remeshing(targetlen=pymeshlab.PureValue(0.5), iterations=1,
-                                           selectedonly=False, adaptive=False)
+    _isotropic(ms, pymeshlab, 0.5, 1, False)
+
+
+def _isotropic(ms, pymeshlab, length, iterations, selected):
+    """pymeshlab's isotropic explicit remeshing with every parameter given (its defaults, but the
+    target length, iterations and selection): pymeshlab was seen to reuse a previous call's
+    ``selectedonly=True``, so nothing is left to what an earlier call set."""
+    ms.meshing_isotropic_explicit_remeshing(
+        iterations=iterations, adaptive=False, selectedonly=selected, targetlen=pymeshlab.PureValue(length),
+        featuredeg=30.0, checksurfdist=True, maxsurfdist=pymeshlab.PercentageValue(1.0), splitflag=True,
+        collapseflag=True, swapflag=True, smoothflag=True, reprojectflag=True)
 
 
 def _meshset(V, F):
@@ -245,9 +254,7 @@ def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None):
     if not (np.isfinite(L) and 0 < L < diag):
         raise MeshError(f"target_edge_length must lie in (0, {diag:.4g}) (the bounding-box diagonal), got {L}")
     ms, pymeshlab = _meshset(V, F)
-    # every parameter explicit: pymeshlab was seen to reuse a previous call's selectedonly=True
-    ms.meshing_isotropic_explicit_remeshing(targetlen=pymeshlab.PureValue(L), iterations=int(iterations),
-                                           selectedonly=False, adaptive=False)
+    _isotropic(ms, pymeshlab, L, int(iterations), False)
     params = {"target_edge_length": L, "iterations": int(iterations)}
     if edge_factor is not None:
         params["edge_factor"] = float(edge_factor)
@@ -293,8 +300,7 @@ def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6):
     for cond, length in ((f"({c}0+{c}1+{c}2)/3 < {cut!r}", coarse), (f"({c}0+{c}1+{c}2)/3 >= {cut!r}", fine)):
         ms.set_selection_none()
         ms.compute_selection_by_condition_per_face(condselect=cond)
-        ms.meshing_isotropic_explicit_remeshing(targetlen=pymeshlab.PureValue(length * mean_edge),
-                                               selectedonly=True, adaptive=False, iterations=int(iterations))
+        _isotropic(ms, pymeshlab, length * mean_edge, int(iterations), True)
     ms.set_selection_none()
     return _from_meshset(ms, "anisotropic", {"coarse": coarse, "fine": fine, "axis": axis,
                                              "iterations": int(iterations)})
