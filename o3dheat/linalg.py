@@ -90,13 +90,14 @@ def memory_limits():
 
     * ``"system"``: the system's available memory (``MemAvailable`` of /proc/meminfo);
     * ``"cgroup"``: a memory cgroup's limit (a container's ``--memory``, a systemd or batch
-      scheduler's slice; cgroup v2 ``memory.max`` or v1 ``memory.limit_in_bytes``, of the process's
-      group and every group above it) less its usage, the page cache (but shared memory) not
-      counted as used: the kernel reclaims it before it kills. The kernel kills a process of a group that reaches its limit;
+      scheduler's slice; cgroup v2 ``memory.max`` or v1 ``memory.limit_in_bytes``, of the
+      process's group and every group above it) less its usage, the page cache (but shared
+      memory) not counted as used: the kernel reclaims it before it kills a process of a group
+      that reaches its limit;
     * ``"Dask worker"``: inside a Dask worker that has a nanny and a memory limit, the fraction of
-      it at which the nanny restarts the worker (``distributed.worker.memory.terminate``, 95% by default) less the
-      process's resident memory. A worker that is restarted kills its task, and Dask retries it on
-      another worker, which dies the same way;
+      it at which the nanny restarts the worker (``distributed.worker.memory.terminate``, 95% by
+      default) less the process's resident memory. A worker that is restarted kills its task, and
+      Dask retries it on another worker, which dies the same way;
     * ``"address space"``: an address-space limit (``ulimit -v``) less the process's address space.
 
     Returns
