@@ -163,10 +163,7 @@ def test_cli_study_every_task_failed_exits_1_without_plots(tmp_path, capsys):
     import open3d as o3d
 
     V, F = icosphere(2)
-    m = o3d.t.geometry.TriangleMesh()
-    m.vertex.positions = o3d.core.Tensor(V)
-    m.triangle.indices = o3d.core.Tensor(F)
-    o3dheat.io.write_mesh(tmp_path / "s.ply", m)
+    o3dheat.io.write_mesh(tmp_path / "s.ply", o3d.t.geometry.TriangleMesh(o3d.core.Tensor(V), o3d.core.Tensor(F)))
     cfg = tmp_path / "study.toml"
     cfg.write_text('k = 10\nscales = 2\nkernels = ["weighted"]\ndescriptors = ["smooth_height"]\n'
                    '[meshes]\ns = "s.ply"\n[[resampling]]\nname = "bad"\nkind = "remesh"\n'

@@ -79,10 +79,7 @@ def test_a_new_variant_reaches_the_command(tmp_path, capsys, twin):
     from conftest import icosphere
 
     V, F = icosphere(1)
-    mesh = o3d.t.geometry.TriangleMesh()
-    mesh.vertex.positions = o3d.core.Tensor(V)
-    mesh.triangle.indices = o3d.core.Tensor(F)
-    o3dheat.io.write_mesh(tmp_path / "s.ply", mesh)
+    o3dheat.io.write_mesh(tmp_path / "s.ply", o3d.t.geometry.TriangleMesh(o3d.core.Tensor(V), o3d.core.Tensor(F)))
     # a filter parameter on the command line
     out = tmp_path / "out.ply"
     assert main(["apply", str(tmp_path / "s.ply"), str(out), "-f", f"hks:variant={twin},k=8,scales=2"]) == 0
