@@ -8,6 +8,7 @@ from .approximation import ScaleSpace, feature_driven, scale_space
 from .diffusion import diffuse
 from .errors import MeshError, SolverError
 from .fem import mass_matrix, stiffness_matrix
+from .heatflow import HeatFlow, heat_flow
 from .kernel import VARIANTS, HeatKernel, heat_kernel
 from .mesh import MeshReport, Repaired, as_arrays, check_mesh, repair
 from .spectrum import Spectrum, eigensolve
@@ -15,7 +16,7 @@ from .study import robustness_study
 from .topology import (CriticalPoints, PersistenceDiagram, critical_points, level_sets, persistence,
                        simplify_critical_points)
 
-from . import approximation, batch, cluster, fem, figures, filters, io, plot, sampling, study, topology  # noqa: E402, F401  (o3dheat.filters.apply, o3dheat.batch.run, ...)
+from . import approximation, batch, cluster, fem, figures, filters, heatflow, io, krylov, plot, sampling, study, topology  # noqa: E402, F401  (o3dheat.filters.apply, o3dheat.batch.run, ...)
 
 __version__ = "0.1.0"
 
@@ -24,6 +25,7 @@ __all__ = [
     "stiffness_matrix", "mass_matrix",
     "eigensolve", "Spectrum",
     "HeatKernel", "heat_kernel", "VARIANTS",
+    "heat_flow", "HeatFlow",
     "diffuse",
     "critical_points", "CriticalPoints", "persistence", "PersistenceDiagram",
     "simplify_critical_points", "level_sets",

@@ -38,7 +38,7 @@ from .errors import MeshError, SolverError
 from .spectrum import Spectrum, _all_zero
 
 __all__ = ["HeatKernel", "heat_kernel", "VARIANTS", "GRIDS", "HKS_FORMS", "HKS_DEFAULT", "NORMALIZATIONS",
-           "mass_of", "variant_of_mass"]
+           "mass_of", "variant_of_mass", "first_nonzero", "transfer_function"]
 
 #: kernel variant -> (mass of its eigenproblem, a key of :data:`o3dheat.fem.MASS_KINDS`; what it is
 #: in one line). The one definition used by the filters, the command, the studies and the figures:
@@ -59,6 +59,81 @@ HKS_DEFAULT = "density"
 #: eigenvalue normalisations of :class:`HeatKernel` (``normalize=``): None, or "lambda2" (divided by
 #: the first non-zero eigenvalue: the scale-invariant kernel, §2.2)
 NORMALIZATIONS = (None, "lambda2")
+
+
+def first_nonzero(eigenvalues):
+    """The first non-zero of ascending eigenvalues (above 1e-8 of the largest): ``λ_2`` of a
+    connected mesh, the divisor of ``normalize="lambda2"``.
+
+    Raises
+    ------
+    MeshError
+        Every eigenvalue is zero (only constants per component).
+
+    Examples
+    --------
+    >>> from o3dheat.kernel import first_nonzero
+    >>> first_nonzero([1e-15, 2.0, 6.0])
+    2.0
+    """
+    lam = np.asarray(eigenvalues, dtype=np.float64)
+    tol = 1e-8 * max(float(np.max(np.abs(lam))), 1e-300)
+    nz = lam[lam > tol]
+    if nz.size == 0:
+        raise MeshError("normalize='lambda2' needs a non-zero eigenvalue: compute more eigenpairs")
+    return float(nz[0])
+
+
+def transfer_function(transfer):
+    """The transfer function φ of ``transfer`` (§2.3) as a checked, vectorised callable; None for None.
+
+    Parameters
+    ----------
+    transfer : None, callable or sequence of float
+        A vectorised callable ``φ(λ)``, or polynomial coefficients in increasing degree
+        ``c0 + c1 λ + c2 λ² ...``.
+
+    Returns
+    -------
+    callable or None
+        ``λ (k,) -> φ(λ) (k,)``, raising :class:`~o3dheat.MeshError` when φ does not map the
+        eigenvalues to as many finite values.
+
+    Examples
+    --------
+    >>> from o3dheat.kernel import transfer_function
+    >>> transfer_function([0.0, 1.0, 0.5])([0.0, 2.0]).tolist()      # λ + λ²/2
+    [0.0, 4.0]
+    """
+    if transfer is None:
+        return None
+    if callable(transfer):
+        fn = transfer
+    else:
+        try:
+            coef = np.asarray(transfer, dtype=np.float64)
+        except (TypeError, ValueError):
+            coef = np.zeros((0, 0))
+        if coef.ndim != 1 or coef.size == 0 or not np.all(np.isfinite(coef)):
+            raise MeshError("transfer must be a callable or a 1-D sequence of finite polynomial coefficients")
+
+        def fn(lam):
+            return np.polynomial.polynomial.polyval(lam, coef)
+
+        fn.coefficients = coef
+
+    def phi(lam):
+        lam = np.asarray(lam, dtype=np.float64)
+        try:
+            out = np.asarray(fn(lam), dtype=np.float64)
+        except (TypeError, ValueError) as e:
+            raise MeshError(f"the transfer function failed on the eigenvalues ({type(e).__name__}: {e})") from e
+        if out.shape != lam.shape or not np.all(np.isfinite(out)):
+            raise MeshError("the transfer function must map the eigenvalues to as many finite values")
+        return out
+
+    phi.coefficients = getattr(fn, "coefficients", None)
+    return phi
 
 
 def _unknown_variant(variant):
@@ -197,27 +272,9 @@ class HeatKernel:
         self.transfer = transfer
         lam = np.asarray(spectrum.eigenvalues, dtype=np.float64)
         if normalize == "lambda2":
-            lam = lam / self._first_nonzero(lam)
-        if transfer is not None:
-            if callable(transfer):
-                phi = np.asarray(transfer(lam), dtype=np.float64)
-            else:
-                coef = np.asarray(transfer, dtype=np.float64)
-                if coef.ndim != 1 or coef.size == 0:
-                    raise MeshError("transfer must be a callable or a 1-D sequence of polynomial coefficients")
-                phi = np.polynomial.polynomial.polyval(lam, coef)
-            if phi.shape != lam.shape or not np.all(np.isfinite(phi)):
-                raise MeshError("the transfer function must map the eigenvalues to as many finite values")
-            lam = phi
-        self.rates = lam  # φ(λ_i) (normalised): D_t = diag(exp(-rates t / 2))
-
-    @staticmethod
-    def _first_nonzero(lam):
-        tol = 1e-8 * max(float(np.max(np.abs(lam))), 1e-300)
-        nz = lam[lam > tol]
-        if nz.size == 0:
-            raise MeshError("normalize='lambda2' needs a non-zero eigenvalue: compute more eigenpairs")
-        return float(nz[0])
+            lam = lam / first_nonzero(lam)
+        phi = transfer_function(transfer)
+        self.rates = lam if phi is None else phi(lam)  # φ(λ_i) (normalised): D_t = diag(exp(-rates t / 2))
 
     def __repr__(self):
         return (f"HeatKernel(variant={self.variant!r}, normalize={self.normalize!r}, "
@@ -431,7 +488,7 @@ class HeatKernel:
                             "eigenpairs than the mesh has components to define the scales")
         if grid == "paper":
             return np.arange(1, count + 1) / count / lk
-        lo, hi = 1.0 / lk, 2.0 * np.log(100.0) / self._first_nonzero(self.rates)
+        lo, hi = 1.0 / lk, 2.0 * np.log(100.0) / first_nonzero(self.rates)
         if hi <= lo:  # few eigenpairs: λ_k close to λ_2
             hi = 10.0 * lo
         return np.geomspace(lo, hi, count) if count > 1 else np.array([lo])

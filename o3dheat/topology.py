@@ -62,6 +62,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from . import checks
+from ._jit import any_compiled, compiled
 from .errors import MeshError
 from .mesh import _degenerate, _unique_rows, _weld_map, as_arrays
 
@@ -261,28 +262,14 @@ class Surface:
 
 
 # -------------------------------------------------------------------------------- compiled loops
-# The loops below are plain Python functions compiled on first use by numba (``_kernel``), which is
-# imported only then: ``import o3dheat`` does not pay for it. Compiled code is cached beside this
-# file (``__pycache__``; numba falls back to a per-user folder, or NUMBA_CACHE_DIR, when that is
-# not writable), so compiling (a few seconds) happens once per installation and source version.
-# Vertex ids are int32 inside, indices of faces and edges int64.
-_compiled = {}
+# The loops below are plain Python functions compiled on first use (:func:`o3dheat._jit.compiled`:
+# numba, imported only then, cached once per installation). Vertex ids are int32 inside, indices
+# of faces and edges int64.
 
 
 def _kernel(name):
-    """The numba-compiled version of the module function ``name`` (compiled or loaded once)."""
-    k = _compiled.get(name)
-    if k is None:
-        from numba import njit
-
-        try:
-            k = njit(cache=True, nogil=True)(globals()[name])
-        except RuntimeError as e:  # no writable cache location at all: compile in every process
-            log.warning("the compiled loops of o3dheat.topology cannot be cached (%s): they are "
-                        "compiled again in each process; set NUMBA_CACHE_DIR to a writable folder", e)
-            k = njit(nogil=True)(globals()[name])
-        _compiled[name] = k
-    return k
+    """The compiled version of the module function ``name``."""
+    return compiled(globals()[name])
 
 
 def warm_up():
@@ -317,8 +304,7 @@ def compiled_in_this_process():
     >>> isinstance(T.compiled_in_this_process(), bool)
     True
     """
-    return any(sum(k.stats.cache_misses.values()) > 0 for k in _compiled.values()
-               if hasattr(k, "stats"))
+    return any_compiled(__name__)
 
 
 def _k_edges(F, n):

@@ -2,7 +2,8 @@
 section (run as a doctest by ``--doctest-modules``), and the site's API pages list every module.
 
 Public means: the names of each module's ``__all__`` (``o3dheat.*``; ``o3dheat_filters.*``, whose
-modules have no ``__all__``, contribute the classes and functions they define), and, for each
+modules have no ``__all__``, contribute the classes and functions they define; modules whose name
+starts with ``_`` are the package's internal helpers, not public), and, for each
 public class, the functions, class methods and static methods defined in its body whose names do
 not start with ``_``. Properties and data are attributes: the class's example shows them.
 Examples marked ``# doctest: +SKIP`` count (a Dask cluster of worker processes is too slow for
@@ -23,7 +24,7 @@ EXAMPLES = re.compile(r"^Examples\n-{8,}\n", re.M)
 
 
 def modules():
-    names = [f"o3dheat.{m.name}" for m in pkgutil.iter_modules(o3dheat.__path__)]
+    names = [f"o3dheat.{m.name}" for m in pkgutil.iter_modules(o3dheat.__path__) if not m.name.startswith("_")]
     names += [f"o3dheat_filters.{m.name}" for m in pkgutil.iter_modules(o3dheat_filters.__path__)
               if not m.name.startswith("_")]
     return sorted(names)

@@ -769,14 +769,16 @@ def test_compiled_in_this_process_says_whether_the_loops_were_compiled_or_loaded
 def test_compiled_in_this_process_counts_cache_misses(monkeypatch):
     import types
 
+    import o3dheat._jit as J
     import o3dheat.topology as T
 
     def fake(misses):
         return types.SimpleNamespace(stats=types.SimpleNamespace(cache_misses={("sig",): misses}))
 
-    monkeypatch.setattr(T, "_compiled", {"a": fake(0), "b": fake(0)})
-    assert T.compiled_in_this_process() is False
-    monkeypatch.setattr(T, "_compiled", {"a": fake(0), "b": fake(1)})
+    mod = "o3dheat.topology"
+    monkeypatch.setattr(J, "_COMPILED", {(mod, "a"): fake(0), (mod, "b"): fake(0), ("other", "c"): fake(1)})
+    assert T.compiled_in_this_process() is False  # another module's compilation is not this one's
+    monkeypatch.setattr(J, "_COMPILED", {(mod, "a"): fake(0), (mod, "b"): fake(1)})
     assert T.compiled_in_this_process() is True
 
 
@@ -785,7 +787,7 @@ def test_warm_up_loads_every_compiled_loop():
     import subprocess
     import sys
 
-    code = ("import o3dheat.topology as T; T.warm_up(); "
-            "print(sorted(T._compiled))")
+    code = ("import o3dheat.topology as T, o3dheat._jit as J; T.warm_up(); "
+            "print(sorted(name for mod, name in J._COMPILED if mod == 'o3dheat.topology'))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == str(sorted(["_k_arcs", "_k_classify", "_k_edges", "_k_fans", "_k_sweeps"]))

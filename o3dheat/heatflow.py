@@ -1,0 +1,515 @@
+"""The full heat kernel without eigenpairs: ``Φ_t f = exp(−(t/2) W⁻¹L) f`` to a stated tolerance
+at any time, for every kernel variant; entry points :func:`heat_flow` and :class:`HeatFlow`.
+
+Why: the spectral kernel ``X_k D_t X_kᵀ W f`` of :class:`o3dheat.HeatKernel` is band-limited to
+the ``k`` smallest eigenpairs. At the paper's scales ``t_i = (i/10)/λ_k`` the dropped eigenpairs
+would keep ``exp(−λ_k t_1 / 2) = 95%`` of their weight in the full kernel, so there the truncation,
+not ``t``, does the smoothing (``k`` acts as a second smoothing parameter, as in the paper's
+Fig. 7). The full kernel ``K_t = exp(−(t/2) W⁻¹L)`` is the one of eq. (5)-(6) without truncation;
+``W`` is the variant's mass (:data:`o3dheat.kernel.VARIANTS`).
+
+How: shift-and-invert Lanczos (:mod:`o3dheat.krylov`) on a sparse Cholesky factor of
+``W + γL`` (:func:`o3dheat.linalg.factorize`), one factor per range of times of at most
+:data:`SHIFT_RANGE` (``γ`` from :func:`shift`); a factor is kept with the mesh's operators for
+later calls on the same geometry (the in-memory cache of :func:`o3dheat.spectrum.memoized`). Its
+cost is that of assembling the operators and one factorization, plus about 22 solves for the
+paper's ten scales or 85 for times spanning four decades (to 1e-8; independent of the mesh size).
+
+Conventions are those of :class:`o3dheat.HeatKernel`: time ``exp(−λ t / 2)``,
+``normalize="lambda2"`` divides the operator by its first non-zero eigenvalue (a few eigenpairs
+are computed for that, once), a transfer function φ gives ``exp(−(t/2) φ(W⁻¹L))``, results are
+per input vertex (0 at unreferenced vertices, welded copies share their vertex's value).
+Accuracy: ``‖Φ_t f − result‖_W <= tol ‖f − f₀‖_W`` for every column and time, by the a
+posteriori estimate of :mod:`o3dheat.krylov` (``f₀`` the W-mean of ``f`` on each connected part,
+which is kept exactly); an answer whose estimate does not reach ``tol`` is never returned
+(:class:`o3dheat.errors.ConvergenceError`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from . import checks, fem
+from .errors import ConvergenceError, MeshError
+from .kernel import NORMALIZATIONS, first_nonzero, mass_of, transfer_function
+from .krylov import propagate
+from .linalg import available_memory, check_memory, factorize
+from .mesh import prepare
+from .spectrum import memoized, shared_eigensolve
+
+__all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "SHIFT_RANGE"]
+
+#: most ratio τ_max/τ_min of the times one shift (one factorization) serves; wider ranges are
+#: split, each part with its own factor
+SHIFT_RANGE = 1e5
+#: bytes per vertex allowed for the stored Krylov basis (at least 512 MiB, at most half the free
+#: memory); vectors beyond are regenerated (one more solve each) instead of stored
+BASIS_BYTES_PER_VERTEX = 2048
+
+
+def shift(tau_min, tau_max):
+    """The shift ``γ`` of the factor ``W + γL`` for times ``τ`` (rate ``exp(−τλ)``) in
+    ``[tau_min, tau_max]``.
+
+    ``γ = τ_min · clip(0.3 (R/10)^0.45, 0.1, 8)``, ``R = τ_max/τ_min``, rounded to a quarter power
+    of two (so that nearby ranges share a factor). Fitted to the steps needed for 1e-8 on
+    irregular 20k-200k-vertex meshes, noisy and smooth fields: one time, best ``γ ≈ τ/10`` (17
+    steps); the paper's ten scales (R = 10) ``γ ≈ 0.3 τ_min`` (22); R = 100, ``0.85 τ_min`` (41);
+    four decades, ``6-8 τ_min`` (85); beyond, the largest times are past the decay of every mode
+    and ``8 τ_min`` stays best.
+
+    Examples
+    --------
+    >>> from o3dheat.heatflow import shift
+    >>> round(shift(1.0, 10.0), 3), round(shift(1.0, 1e4), 3)
+    (0.297, 6.727)
+    """
+    ratio = max(float(tau_max) / float(tau_min), 1.0)
+    g = float(tau_min) * min(max(0.3 * (ratio / 10.0) ** 0.45, 0.1), 8.0)
+    return float(2.0 ** (np.round(4.0 * np.log2(g)) / 4.0))
+
+
+@dataclass
+class FlowReport:
+    """How :meth:`HeatFlow.apply` computed its result.
+
+    Attributes
+    ----------
+    tol : float
+        The tolerance asked (relative, W-norm, of the non-constant part).
+    times : (T,) float64 ndarray
+        The times (paper convention).
+    estimate : (c, T) float64 ndarray
+        A posteriori error estimate per column and time, relative to ``‖f − f₀‖_W``; every
+        entry is ``<= tol`` (0 at ``t = 0`` and for fields constant on each part).
+    steps : (c,) int64 ndarray
+        Solves (Lanczos steps) per column, over all shifts.
+    shifts : list of (float, (k,) int ndarray)
+        Each shift ``γ`` (times τ units) and the indices of the times it served.
+    solves : int
+        Right-hand sides solved in all (regenerated vectors included).
+    timings : dict
+        Seconds: "assemble" (0 when the operators were cached), "factorize", "solve".
+    backend : str
+        The factorization backend.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16)
+    >>> z = mesh.vertex.positions.numpy()[:, 2]
+    >>> F, rep = o3dheat.heat_flow(mesh, z, [0.1, 1.0], return_report=True)
+    >>> bool(rep.estimate.max() <= rep.tol), len(rep.shifts), rep.steps.tolist() == [rep.solves]
+    (True, 1, True)
+    """
+
+    tol: float
+    times: np.ndarray
+    estimate: np.ndarray
+    steps: np.ndarray
+    shifts: list
+    solves: int
+    timings: dict = field(default_factory=dict)
+    backend: str = ""
+
+    def __repr__(self):
+        return (f"FlowReport(tol={self.tol:g}, times={len(self.times)}, columns={len(self.steps)}, "
+                f"solves={self.solves}, shifts={[round(g, 6) for g, _ in self.shifts]}, "
+                f"estimate<={float(self.estimate.max(initial=0.0)):.2g}, backend={self.backend!r})")
+
+
+class _Operators:
+    """A mesh's operators for the flow: L, the mass W (None for the identity), the parts (the null
+    space of L), a bound of the largest eigenvalue, and timings. Shared through the cache."""
+
+    def __init__(self, prep, mass):
+        t0 = time.perf_counter()
+        L, W, _ = fem.operators(prep.V, prep.F, mass)
+        self.L = sp.csr_matrix(L)
+        self.W = None if mass == "identity" else sp.csr_matrix(W)
+        self.mass = mass
+        self.parts, self.labels = connected_components(self.L, directed=False)
+        self.d = np.ones(len(prep.V)) if self.W is None else np.asarray(self.W.sum(axis=1)).ravel()
+        # Gershgorin on D⁻¹L, D the lumped mass (W itself when diagonal): the consistent mass is
+        # >= D/4 element by element (each element's mass has eigenvalues |t|/12 x {1, 1, 4})
+        rows = np.asarray(abs(self.L).sum(axis=1)).ravel()
+        self.lam_max = float(np.max(rows / np.maximum(self.d, 1e-300))) * (4.0 if mass == "consistent" else 1.0)
+        self.seconds = time.perf_counter() - t0
+
+    @property
+    def nbytes(self):
+        total = self.d.nbytes + self.labels.nbytes
+        for M in (self.L, self.W):
+            if M is not None:
+                total += M.data.nbytes + M.indices.nbytes + M.indptr.nbytes
+        return total
+
+
+def _geometry_key(prep, mass):
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(prep.V, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(prep.F, dtype=np.int64).tobytes())
+    h.update(f"{prep.V.shape}{prep.F.shape}|{mass}".encode())
+    return h.hexdigest()[:32]
+
+
+class _Shifted:
+    """A factor of ``W + γL`` with its size, for the cache."""
+
+    def __init__(self, ops, gamma, backend):
+        t0 = time.perf_counter()
+        W = sp.identity(ops.L.shape[0], format="csr") if ops.W is None else ops.W
+        self.factor = factorize(sp.csc_matrix(W + gamma * ops.L), backend=backend)
+        self.seconds = time.perf_counter() - t0
+
+    @property
+    def nbytes(self):
+        return int(getattr(self.factor, "nbytes", 0))
+
+
+class HeatFlow:
+    """The full heat kernel of a mesh, ``K_t = exp(−(t/2) W⁻¹L)``, applied without eigenpairs.
+
+    A stateful twin of :func:`heat_flow` for many fields and times on one mesh: the operators and
+    the factors are built once (and shared with later HeatFlows of the same geometry and mass,
+    unless ``cache=False``).
+
+    Parameters
+    ----------
+    mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F)
+        Repaired as by :func:`o3dheat.mesh.prepare` (welded duplicates, dropped degenerate faces).
+    variant : str
+        A key of :data:`o3dheat.kernel.VARIANTS`: its mass ``W`` (consistent ``B`` for the paper's
+        "weighted" kernel, ``I`` for "linear", lumped, Voronoi).
+    normalize : None or str
+        One of :data:`o3dheat.kernel.NORMALIZATIONS`; "lambda2" uses ``W⁻¹L / λ_2``, the
+        scale-invariant kernel (λ_2 from a small eigensolve, once).
+    transfer : callable or sequence of float, optional
+        A transfer function φ (§2.3), as for :class:`o3dheat.HeatKernel`: ``exp(−(t/2) φ(W⁻¹L))``.
+        φ must be bounded below on ``[0, ∞)`` (a polynomial: a positive leading coefficient), or
+        the full kernel does not exist (it amplifies the highest frequencies without bound).
+    backend : str
+        Factorization backend (:func:`o3dheat.linalg.factorize`).
+    cache : bool
+        Share the operators and factors through the in-memory cache.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16)
+    >>> flow = o3dheat.HeatFlow(mesh)
+    >>> xyz = mesh.vertex.positions.numpy()
+    >>> F = flow.apply(xyz, [0.1, 1.0])                  # three fields, two times: (n, 3, 2)
+    >>> F.shape, bool(np.allclose(flow.apply(np.ones(flow.n), 5.0), 1.0))
+    ((482, 3, 2), True)
+    """
+
+    def __init__(self, mesh, variant="weighted", normalize=None, transfer=None, backend="auto", cache=True):
+        mass = mass_of(variant)
+        if not (normalize is None or isinstance(normalize, str)) or normalize not in NORMALIZATIONS:
+            raise MeshError(f"unknown normalize {normalize!r}: use one of {', '.join(map(repr, NORMALIZATIONS))}")
+        self.variant, self.normalize, self.transfer = variant, normalize, transfer
+        self._phi = transfer_function(transfer)
+        self.backend, self.cache = backend, bool(cache)
+        self._prep = prepare(mesh)
+        self._key = _geometry_key(self._prep, mass)
+        t0 = time.perf_counter()
+        self._ops = self._cached(("heatflow-operators", self._key), lambda: _Operators(self._prep, mass))
+        self._assembled = time.perf_counter() - t0
+        self._lambda2 = None
+        if self._phi is not None and self.normalize is None:
+            self._check_transfer(1.0)  # with normalize, once λ_2 is known (first apply)
+
+    def __repr__(self):
+        return (f"HeatFlow(n={self.n}, variant={self.variant!r}, normalize={self.normalize!r}, "
+                f"transfer={'yes' if self.transfer is not None else None})")
+
+    def _cached(self, key, compute):
+        return memoized(key, compute) if self.cache else compute()
+
+    @property
+    def n(self):
+        """Number of vertices of the input mesh (results have this many rows).
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> o3dheat.HeatFlow(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)).n
+        114
+        """
+        return self._prep.n_input
+
+    @property
+    def faces(self):
+        """(m, 3) int64: the faces the operators are built on, in the input's vertex numbering
+        (what the topology of smoothed fields is computed on).
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> o3dheat.HeatFlow(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)).faces.shape
+        (224, 3)
+        """
+        return self._prep.keep[self._prep.F]
+
+    @property
+    def lambda2(self):
+        """The first non-zero eigenvalue of ``L x = λ W x`` (units 1/length², or dimensionless
+        for "linear"), computed once with :func:`o3dheat.spectrum.shared_eigensolve`.
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> round(o3dheat.HeatFlow(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)).lambda2, 1)
+        2.0
+        """
+        if self._lambda2 is None:
+            prep = self._prep
+            k = min(self._ops.parts + 1, len(prep.V))
+            spec = shared_eigensolve(prep.V, prep.F, k=k, mass=self._ops.mass)
+            self._lambda2 = first_nonzero(spec.eigenvalues)
+        return self._lambda2
+
+    def _unit(self):
+        """The factor of the operator: 1, or 1/λ_2 for normalize="lambda2"."""
+        return 1.0 / self.lambda2 if self.normalize == "lambda2" else 1.0
+
+    def _check_transfer(self, unit):
+        """Refuse a transfer function whose full kernel does not exist: φ decreasing without bound
+        at high frequencies (exp(−(t/2) φ) would amplify them more, the finer the mesh)."""
+        coef = self._phi.coefficients
+        if coef is not None:
+            nz = np.flatnonzero(coef)
+            if len(nz) and nz[-1] > 0 and coef[nz[-1]] < 0:
+                raise MeshError(f"the transfer polynomial's leading coefficient is negative ({coef[nz[-1]]:g}): "
+                                "exp(-(t/2) φ(λ)) grows without bound as λ grows, so the full kernel does not "
+                                "exist; use the spectral kernel (o3dheat.HeatKernel), which truncates it")
+            return
+        top = self._ops.lam_max * unit  # above every (normalised) eigenvalue
+        lam = np.concatenate([[0.0], np.geomspace(max(top * 1e-12, 1e-300), top, 400)])
+        phi = self._phi(lam)
+        low = phi[lam <= 0.1 * top]
+        if phi[-1] < phi[-40] and phi[-1] < low.min() - 1e-12 * max(np.abs(phi).max(), 1e-300):
+            raise MeshError(f"the transfer function decreases to {phi[-1]:.3g} at λ = {top:.3g} (the top of this "
+                            "mesh's spectrum), below its values at low frequencies: exp(-(t/2) φ(λ)) amplifies "
+                            "the finest details more, the finer the mesh, so the full kernel does not converge; "
+                            "use the spectral kernel (o3dheat.HeatKernel), which truncates it")
+
+    def _rates(self, times):
+        """``(taus, rates, null_rate, scale)`` for :func:`o3dheat.krylov.propagate`: ``exp(−τ
+        rates(λ))`` is the kernel at each time, λ the eigenvalues of W⁻¹L; ``scale`` converts
+        τ to the times of the rate λ (what the shift is chosen for: φ(x) ≈ x assumed)."""
+        unit = self._unit()
+        if self._phi is None:
+            return 0.5 * times * unit, None, 0.0, 1.0
+        phi = self._phi
+        if self.normalize is not None:
+            self._check_transfer(unit)
+        return 0.5 * times, (lambda lam: phi(lam * unit)), float(phi(np.zeros(1))[0]), unit
+
+    def _basis_bytes(self):
+        free = available_memory()
+        want = max(BASIS_BYTES_PER_VERTEX * len(self._prep.V), 512 * 2**20)
+        return want if free is None else max(min(want, free // 2), 64 * 2**20)
+
+    def apply(self, f, t, tol=1e-8, *, return_report=False, max_steps=1000):
+        """``Φ_t f = exp(−(t/2) W⁻¹L) f`` (the full kernel) at one or many times.
+
+        Parameters
+        ----------
+        f : (n,) or (n, c) array_like
+            Field(s) per vertex of the input mesh.
+        t : float or (T,) array_like
+            Times >= 0, paper convention (``exp(−λ t / 2)``), in any order.
+        tol : float
+            Relative error asked, in (0, 1): ``‖Φ_t f − result‖_W <= tol ‖f − f₀‖_W`` for each
+            column and time by the a posteriori estimate (``f₀``: the W-mean on each connected part).
+        return_report : bool
+            Also return a :class:`FlowReport`.
+        max_steps : int
+            Most solves per column and shift before giving up (:class:`ConvergenceError`).
+
+        Returns
+        -------
+        ndarray
+            ``(n,)`` or ``(n, c)`` for a scalar ``t``; ``(n, T)`` or ``(n, c, T)`` for an array,
+            like :meth:`o3dheat.HeatKernel.smooth`. With ``return_report``: ``(result, report)``.
+
+        Raises
+        ------
+        MeshError
+            A field with NaN or of the wrong shape, a negative time, ``tol`` outside (0, 1).
+        ConvergenceError
+            The estimate did not reach ``tol`` within ``max_steps`` (the message says how far).
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d, o3dheat
+        >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
+        >>> z = mesh.vertex.positions.numpy()[:, 2]          # an eigenfunction: λ = 2 on the unit sphere
+        >>> g = o3dheat.HeatFlow(mesh).apply(z, 1.0)
+        >>> round(float(g @ z / (z @ z)), 2)                  # ≈ exp(−λ t / 2) = exp(−1)
+        0.37
+        """
+        if isinstance(tol, bool) or not isinstance(tol, (int, float, np.floating, np.integer)) \
+                or not (np.isfinite(tol) and 0 < tol < 1):
+            raise MeshError(f"tol must be a number in (0, 1), got {tol!r}")
+        if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
+            raise MeshError(f"max_steps must be a positive integer, got {max_steps!r}")
+        f = checks.field(f, self.n)
+        t_arr = checks.times(t)
+        times = np.atleast_1d(t_arr)
+        if times.size == 0:
+            raise MeshError("t is empty: give at least one time")
+        prep = self._prep
+        F = prep.restrict(f).reshape(len(prep.V), -1)
+        c, T = F.shape[1], len(times)
+        check_memory(8 * (len(prep.V) + self.n) * c * T, f"the result ({c} fields x {T} times)",
+                     "ask for fewer fields or times at once")
+        U, report = self._flow(F, times, float(tol), int(max_steps))
+        out = prep.expand(U.reshape(len(prep.V), c, T))
+        if f.ndim == 1:
+            out = out[:, 0, :]
+        if t_arr.ndim == 0:
+            out = out[..., 0]
+        return (out, report) if return_report else out
+
+    smooth = apply
+    __call__ = apply
+
+    def _flow(self, F, times, tol, max_steps):
+        ops = self._ops
+        r, c = F.shape
+        T = len(times)
+        taus, rates, null_rate, scale = self._rates(times)
+        U = np.empty((r, c, T))
+        estimate = np.zeros((c, T))
+        steps = np.zeros(c, dtype=np.int64)
+        zero = np.flatnonzero(taus == 0)
+        U[:, :, zero] = F[:, :, None]
+        order = np.flatnonzero(taus > 0)
+        order = order[np.argsort(taus[order], kind="stable")]
+        shifts, solves, t_fac, t_sol = [], 0, 0.0, 0.0
+        backend = ""
+        groups = []
+        for i in order:  # consecutive times within SHIFT_RANGE of the group's first share a shift
+            if groups and taus[i] <= SHIFT_RANGE * taus[groups[-1][0]]:
+                groups[-1].append(i)
+            else:
+                groups.append([i])
+        null = (ops.labels, ops.d)
+        for idx in groups:
+            idx = np.array(idx)
+            tg = taus[idx]
+            gamma = shift(scale * tg.min(), scale * tg.max())
+            t0 = time.perf_counter()
+            shifted = self._cached(("heatflow-factor", self._key, gamma, self.backend),
+                                   lambda g=gamma: _Shifted(ops, g, self.backend))
+            t1 = time.perf_counter()
+            backend = shifted.factor.backend
+            Ug, info = propagate(shifted.factor.solve, ops.W, F, tg, gamma, null=null, tol=tol,
+                                 max_steps=max_steps, rates=rates, basis_bytes=self._basis_bytes(),
+                                 null_rate=null_rate)
+            t_sol += time.perf_counter() - t1
+            t_fac += t1 - t0
+            if not info.converged.all():
+                bad = int(np.flatnonzero(~info.converged)[0])
+                worst = float(info.estimate[bad].max())
+                raise ConvergenceError(
+                    f"the heat flow did not reach tol={tol:g} in {max_steps} steps (column {bad}: estimated "
+                    f"relative error {worst:.2g} at times {times[idx].min():.4g}..{times[idx].max():.4g})"
+                    + ("; the transfer function may make the kernel too rough to approximate"
+                       if self._phi is not None else "; raise max_steps, or split the times"))
+            U[:, :, idx] = Ug
+            estimate[:, idx] = info.estimate
+            steps += info.steps
+            solves += info.solves
+            shifts.append((gamma, idx))
+        timings = {"assemble": self._assembled, "factorize": t_fac, "solve": t_sol}
+        self._assembled = 0.0  # later calls reuse the operators
+        report = FlowReport(tol, times.copy(), estimate, steps, shifts, solves, timings, backend)
+        return U, report
+
+    def error(self, f, t, tol=1e-8):
+        """``ε∞ = ‖f − Φ_t f‖∞ / ‖f‖∞`` of the full kernel (0 when f = 0), like
+        :meth:`o3dheat.HeatKernel.error`.
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16)
+        >>> o3dheat.HeatFlow(mesh).error(mesh.vertex.positions.numpy()[:, 2], [0.01, 1.0]).round(2).tolist()
+        [0.01, 0.63]
+        """
+        f = checks.field(f, self.n)
+        if f.ndim != 1:
+            raise MeshError("error() takes one scalar field (n,)")
+        F = self.apply(f, t, tol=tol)
+        nf = float(np.abs(f).max())
+        d = np.abs(F - (f[:, None] if F.ndim == 2 else f)).max(axis=0)
+        return d / nf if nf > 0 else d * 0.0
+
+    def scales(self, count=10, grid="paper", k=100):
+        """The scale grids of :meth:`o3dheat.HeatKernel.scales`, which are defined by a spectrum
+        (``λ_k`` of ``k`` eigenpairs, and ``λ_2``): computed here with
+        :func:`o3dheat.spectrum.shared_eigensolve` (cached; this costs the eigensolve that the
+        flow itself does not need: pass explicit times to avoid it).
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> flow = o3dheat.HeatFlow(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16))
+        >>> flow.scales(3, k=36).round(4).tolist()
+        [0.01, 0.02, 0.03]
+        """
+        from .kernel import HeatKernel
+
+        prep = self._prep
+        k = checks.count(k, "k")
+        spec = shared_eigensolve(prep.V, prep.F, k=min(k, len(prep.V)), mass=self._ops.mass)
+        return HeatKernel(spec, variant=self.variant, normalize=self.normalize, transfer=self.transfer).scales(
+            count, grid)
+
+
+def heat_flow(mesh, f, t, *, variant="weighted", normalize=None, transfer=None, tol=1e-8,
+              return_report=False, backend="auto"):
+    """``Φ_t f`` with the full heat kernel ``exp(−(t/2) W⁻¹L)``: no eigenpairs, no truncation.
+
+    The one-call twin of :class:`HeatFlow` (whose operators and factors it caches for later calls
+    on the same geometry). See the module notes for the method, its cost and its accuracy.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+    f : (n,) or (n, c) array_like
+    t : float or (T,) array_like
+        Times >= 0, paper convention ``exp(−λ t / 2)``.
+    variant, normalize, transfer, backend
+        As for :class:`HeatFlow`.
+    tol : float
+        Relative W-norm error asked, in (0, 1) (see :meth:`HeatFlow.apply`).
+    return_report : bool
+        Also return the :class:`FlowReport` (solves, shifts, estimates, timings).
+
+    Returns
+    -------
+    ndarray
+        Shapes as :meth:`o3dheat.HeatKernel.smooth`: (n,), (n, T), (n, c) or (n, c, T).
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> mesh = o3d.t.geometry.TriangleMesh.create_torus()
+    >>> z = mesh.vertex.positions.numpy()[:, 2]
+    >>> F = o3dheat.heat_flow(mesh, z, [0.01, 0.1, 1.0])
+    >>> F.shape, bool(np.all(np.abs(F).max(axis=0)[1:] < np.abs(F).max(axis=0)[:-1]))
+    ((600, 3), True)
+    """
+    flow = HeatFlow(mesh, variant=variant, normalize=normalize, transfer=transfer, backend=backend)
+    return flow.apply(f, t, tol=tol, return_report=return_report)

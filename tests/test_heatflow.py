@@ -1,0 +1,242 @@
+"""The full heat kernel (o3dheat.heatflow, o3dheat.krylov) against the complete dense generalized
+eigendecomposition (scipy.linalg.eigh(L, W)), its identities, and bad input."""
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+from conftest import grid, icosphere, irregular, torus
+
+import o3dheat
+from o3dheat import fem
+from o3dheat.errors import ConvergenceError, MeshError
+from o3dheat.heatflow import HeatFlow, heat_flow, shift
+from o3dheat.kernel import VARIANTS, mass_of
+
+TOL = 1e-8
+
+
+def two_parts():
+    """A sphere and a torus beside it: two connected components."""
+    V1, F1 = icosphere(3)
+    V2, F2 = torus(radial=30, tubular=14)
+    return np.vstack([V1, V2 + [3.0, 0, 0]]), np.vstack([F1, F2 + len(V1)])
+
+
+MESHES = {"irregular": irregular, "boundary": lambda: grid(2.0, 1.0, 30, 16, jitter=0.3), "two parts": two_parts}
+
+
+def dense(V, F, variant):
+    """L, W and the complete W-orthonormal eigendecomposition."""
+    L, W, _ = fem.operators(V, F, mass_of(variant))
+    L, W = L.toarray(), W.toarray()
+    lam, X = sla.eigh(L, W)
+    return L, W, np.maximum(lam, 0.0), X
+
+
+def reference(W, lam, X, f, t, phi=None):
+    rates = lam if phi is None else phi(lam)
+    c = X.T @ (W @ f)
+    return np.einsum("ik,kt,k...->i...t", X, np.exp(-0.5 * np.multiply.outer(rates, t)), c)
+
+
+def wnorm(W, E):
+    """W-norms of the columns of E (n, ...) over the first axis."""
+    return np.sqrt(np.einsum("i...,ij,j...->...", E, W, E))
+
+
+def paper_and_log_times(lam):
+    """The paper's grid for k = 100 and the log grid up to 2 ln(100)/λ_2, with t = 0: four decades."""
+    lk, l2 = lam[99], lam[lam > 1e-8 * lam.max()][0]
+    return np.concatenate([[0.0], np.arange(1, 11) / 10 / lk, np.geomspace(1 / lk, 2 * np.log(100) / l2, 10)])
+
+
+@pytest.fixture(scope="module")
+def meshes():
+    return {name: make() for name, make in MESHES.items()}
+
+
+@pytest.mark.parametrize("variant", list(VARIANTS))
+@pytest.mark.parametrize("name", list(MESHES))
+def test_against_the_complete_dense_decomposition(meshes, name, variant):
+    V, F = meshes[name]
+    L, W, lam, X = dense(V, F, variant)
+    rng = np.random.default_rng(1)
+    f = np.column_stack([V[:, 1] + 0.1 * np.ptp(V[:, 1]) * rng.standard_normal(len(V)), V[:, 0] ** 2])
+    t = paper_and_log_times(lam)
+    U, rep = heat_flow((V, F), f, t, variant=variant, tol=TOL, return_report=True)
+    R = reference(W, lam, X, f, t)
+    N = X[:, lam <= 1e-8 * lam.max()]
+    f0 = N @ (N.T @ (W @ f))  # the W-mean per part: the null-space part
+    rel = wnorm(W, U - R) / wnorm(W, f - f0)[:, None]
+    assert rel.max() <= TOL, rel.max()
+    assert rep.estimate.max() <= TOL and len(rep.shifts) == 1
+    assert np.array_equal(U[:, :, 0], f)  # t = 0: the field itself
+
+
+@pytest.mark.parametrize("variant", list(VARIANTS))
+def test_identities(variant):
+    V, F = irregular()
+    flow = HeatFlow((V, F), variant=variant)
+    W = fem.operators(V, F, mass_of(variant))[1]
+    rng = np.random.default_rng(2)
+    f = rng.standard_normal(len(V))
+    t = np.array([1e-3, 1e-2, 0.1, 1.0])
+    assert np.allclose(flow.apply(np.ones(len(V)), t), 1.0, rtol=0, atol=1e-12)  # K_t 1 = 1
+    U = flow.apply(f, t)
+    mass = np.ones(len(V)) @ (W @ U)
+    assert np.allclose(mass, np.ones(len(V)) @ (W @ f), rtol=1e-12)  # W-mass conserved
+    # semigroup: K_s K_t f = K_{s+t} f
+    s, u = 0.03, 0.2
+    a = flow.apply(flow.apply(f, u), s)
+    b = flow.apply(f, s + u)
+    assert np.sqrt((a - b) @ (W @ (a - b))) <= 10 * TOL * np.sqrt(f @ (W @ f))
+    # t -> 0: f; t -> inf: the W-mean
+    tiny = flow.apply(f, 1e-14)
+    assert np.abs(tiny - f).max() <= 1e-6 * np.abs(f).max()
+    mean = (np.ones(len(V)) @ (W @ f)) / (np.ones(len(V)) @ (W @ np.ones(len(V))))
+    assert np.allclose(flow.apply(f, 1e4), mean, rtol=0, atol=1e-9 * np.abs(f).max())
+
+
+def test_means_per_part_and_exact_constants():
+    V, F = two_parts()
+    parts = np.r_[np.zeros(len(icosphere(3)[0]), int), np.ones(len(V) - len(icosphere(3)[0]), int)]
+    f = np.where(parts == 0, 2.0, -5.0)  # constant on each part: in the null space, no solve at all
+    U, rep = heat_flow((V, F), f, [0.1, 10.0], return_report=True)
+    assert np.array_equal(U, np.repeat(f[:, None], 2, axis=1)) or np.allclose(U, f[:, None], rtol=0, atol=1e-14)
+    assert rep.solves == 0
+    g = np.random.default_rng(0).standard_normal(len(V))
+    W = fem.mass_matrix(V, F)
+    late = heat_flow((V, F), g, 1e5)
+    for p in (0, 1):
+        on = parts == p
+        m = (on @ (W @ g)) / (on @ (W @ on.astype(float)))
+        assert np.allclose(late[on], m, atol=1e-9)
+
+
+def test_agrees_with_the_complete_spectral_kernel():
+    V, F = icosphere(2)
+    K = o3dheat.HeatKernel(o3dheat.eigensolve((V, F), k=len(V)))  # every eigenpair: exact
+    f = V[:, 2] + np.sin(3 * V[:, 0])
+    t = np.array([0.001, 0.05, 0.5, 5.0])
+    W = K.spectrum.mass.toarray()
+    E = heat_flow((V, F), f, t) - K.smooth(f, t)
+    assert wnorm(W, E).max() <= TOL * np.sqrt(f @ W @ f)
+
+
+@pytest.mark.parametrize("scheme, order", [("explicit", 1), ("implicit", 1)])
+def test_time_stepping_converges_to_it(scheme, order):
+    V, F = icosphere(2)
+    f = V[:, 2] + 0.3 * np.cos(4 * V[:, 1])
+    t = 0.1
+    exact = heat_flow((V, F), f, t, tol=1e-12)
+    errors = []
+    for steps in (50, 100, 200, 400):
+        g = o3dheat.diffuse((V, F), f, dt=t / steps, steps=steps, scheme=scheme)
+        errors.append(np.abs(g - exact).max())
+    ratios = np.array(errors[:-1]) / np.array(errors[1:])
+    assert np.all(ratios > 1.8) and errors[-1] < 1e-3 * np.abs(f).max()  # first order in dt
+
+
+def test_transfer_functions_against_dense():
+    V, F = icosphere(3)
+    L, W, lam, X = dense(V, F, "weighted")
+    f = V[:, 0] + 0.2 * np.random.default_rng(3).standard_normal(len(V))
+    t = np.array([0.01, 0.1])
+    coef = [0.0, 1.0, 0.05]
+    U = heat_flow((V, F), f, t, transfer=coef)
+    phi = lambda lam: np.polynomial.polynomial.polyval(lam, coef)  # noqa: E731
+    R = reference(W, lam, X, f, t, phi)
+    f1 = f - (W @ f).sum() / W.sum()
+    assert (wnorm(W, U - R) / np.sqrt(f1 @ W @ f1)).max() <= TOL
+    # a constant transfer decays the constants too: exp(-(t/2) φ(0))
+    g = heat_flow((V, F), np.ones(len(V)), 2.0, transfer=[1.0, 1.0])
+    assert np.allclose(g, np.exp(-1.0))
+
+
+def test_normalized_kernel_is_scale_invariant_and_covariance():
+    V, F = irregular()
+    f = V[:, 2] ** 2
+    t = np.array([0.5, 2.0])
+    a = heat_flow((V, F), f, t, normalize="lambda2")
+    b = heat_flow((2.0 * V, F), f, t, normalize="lambda2")
+    assert np.abs(a - b).max() <= 1e-7 * np.abs(f).max()
+    # K_t(αM) = K_{t/α²}(M)
+    c = heat_flow((2.0 * V, F), f, t)
+    d = heat_flow((V, F), f, t / 4.0)
+    assert np.abs(c - d).max() <= 1e-7 * np.abs(f).max()
+
+
+def test_shapes_and_caching():
+    V, F = icosphere(2)
+    flow = HeatFlow((V, F))
+    n = len(V)
+    assert flow.apply(V[:, 0], 0.1).shape == (n,)
+    assert flow.apply(V[:, 0], [0.1, 0.2]).shape == (n, 2)
+    assert flow.apply(V, 0.1).shape == (n, 3)
+    assert flow.apply(V, [0.1]).shape == (n, 3, 1)
+    again = HeatFlow((V.copy(), F.copy()))
+    assert again._ops is flow._ops  # the operators are shared
+    a = flow.apply(V, [0.1, 1.0])
+    assert np.array_equal(a, again.apply(V, [0.1, 1.0]))  # and reproducible bit for bit
+    # times in any order, repeated
+    b = flow.apply(V[:, 0], [1.0, 0.1, 1.0])
+    assert np.array_equal(b[:, 0], b[:, 2]) and np.allclose(b[:, 1], flow.apply(V[:, 0], 0.1), atol=1e-12)
+
+
+def test_unreferenced_and_welded_vertices_follow_the_spectral_conventions():
+    V, F = icosphere(2)
+    V2 = np.vstack([V, [[5.0, 5.0, 5.0]], V[F[0]]])  # an unreferenced vertex, copies of a face's corners
+    F2 = np.vstack([F[1:], len(V) + 1 + np.arange(3)[None]])
+    f = np.r_[V[:, 2], 7.0, V[F[0], 2]]
+    K = o3dheat.HeatKernel(o3dheat.eigensolve((V2, F2), k=len(V)))
+    a, b = heat_flow((V2, F2), f, 0.2), K.smooth(f, 0.2)
+    assert a[len(V)] == 0.0 and np.abs(a - b).max() <= 1e-7
+
+
+def test_wide_ranges_are_split_over_shifts():
+    V, F = icosphere(3)
+    _, rep = heat_flow((V, F), V[:, 0], np.geomspace(1e-7, 1e3, 8), return_report=True)
+    assert len(rep.shifts) == 2 and rep.estimate.max() <= TOL
+    assert shift(1.0, 10.0) < shift(1.0, 1e4) <= 8.0
+
+
+@pytest.mark.parametrize("bad, message", [
+    (dict(f="nan"), "NaN"),
+    (dict(t=-1.0), "times must be finite and >= 0"),
+    (dict(t=[]), "t is empty"),
+    (dict(t="soon"), "t must be a number"),
+    (dict(tol=0.0), "tol must be a number in (0, 1)"),
+    (dict(tol=1.5), "tol must be a number in (0, 1)"),
+    (dict(tol=float("nan")), "tol must be a number in (0, 1)"),
+    (dict(tol="1e-8"), "tol must be a number in (0, 1)"),
+    (dict(f="short"), "one value per vertex"),
+])
+def test_bad_input(bad, message):
+    V, F = icosphere(1)
+    f = V[:, 0].copy()
+    if bad.get("f") == "nan":
+        f[3] = np.nan
+    elif bad.get("f") == "short":
+        f = f[:-1]
+    kwargs = {k: v for k, v in bad.items() if k != "f"}
+    t = kwargs.pop("t", 0.1)
+    with pytest.raises(MeshError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        heat_flow((V, F), f, t, **kwargs)
+
+
+def test_transfer_functions_that_do_not_converge_are_refused():
+    V, F = icosphere(2)
+    with pytest.raises(MeshError, match="leading coefficient is negative"):
+        HeatFlow((V, F), transfer=[0.0, 1.0, -0.01])
+    with pytest.raises(MeshError, match="full kernel does not converge"):
+        HeatFlow((V, F), transfer=lambda lam: -lam)
+    with pytest.raises(ConvergenceError, match="did not reach tol"):  # bounded but wild: no convergence
+        heat_flow((V, F), V[:, 0] + np.cos(5 * V[:, 1]), 1.0, transfer=lambda lam: 50 * np.sin(lam * 3.0))
+    with pytest.raises(MeshError, match="finite"):
+        heat_flow((V, F), V[:, 0], 1.0, transfer=lambda lam: np.where(lam > 1, np.inf, lam))
+
+
+def test_an_unconverged_answer_is_never_returned():
+    V, F = icosphere(3)
+    with pytest.raises(ConvergenceError, match="did not reach tol=1e-08 in 5 steps"):
+        HeatFlow((V, F)).apply(V[:, 0] + np.sin(9 * V[:, 2]), [1e-4, 1.0], max_steps=5)
