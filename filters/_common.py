@@ -14,7 +14,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 
-from o3dheat import kernel
+from o3dheat import heatflow, kernel
 from o3dheat.errors import MeshError
 from o3dheat.filters import OneOf
 
@@ -28,6 +28,7 @@ Grid = Literal[kernel.GRIDS]
 HksForm = Literal[kernel.HKS_FORMS]
 Normalization = Literal[kernel.NORMALIZATIONS]
 Operators = Literal[OPERATORS]
+Method = Literal[heatflow.METHODS]
 
 
 class Site:
@@ -268,18 +269,22 @@ class Site:
         return shared_spectrum(V, F, k=k, mass=mass, cache=cache)
 
 
-def _robust_spectrum(P, k):
+def _robust_operators(P):
     try:
         import robust_laplacian
     except ImportError:
         raise MeshError("operators='robust' needs robust-laplacian: pip install robust-laplacian "
                         "(or use operators='reconstruct')") from None
+    return robust_laplacian.point_cloud_laplacian(P)
+
+
+def _robust_spectrum(P, k):
     import hashlib
 
     from o3dheat.spectrum import eigensolve_operators, memoized
 
     def compute():
-        L, M = robust_laplacian.point_cloud_laplacian(P)
+        L, M = _robust_operators(P)
         return eigensolve_operators(L, M, k=min(k, len(P) - 2))
 
     key = ("robust", hashlib.sha256(np.ascontiguousarray(P, dtype=np.float64).tobytes()).hexdigest(), k)
@@ -306,6 +311,49 @@ def kernel_of(site, k, variant="weighted", normalize=None):
                         f"or operators='reconstruct' for the {variant!r} kernel")
     mass = kernel.mass_of(variant)  # an unknown variant: MeshError listing them
     return HeatKernel(site.spectrum(k=k, mass=mass), variant=variant, normalize=normalize)
+
+
+def flow_of(site, variant="weighted", normalize=None, tol=1e-8):
+    """The full heat kernel ``variant`` (:class:`o3dheat.HeatFlow`) of the site's surface (its
+    operators and factors cached for the chain), to ``tol``; robust-laplacian's operators for point
+    clouds with ``operators="robust"`` ("weighted" only).
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat_filters._common import Site, flow_of
+    >>> flow = flow_of(Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)), "lumped")
+    >>> flow.variant, flow.n
+    ('lumped', 114)
+    """
+    from o3dheat import HeatFlow
+
+    kernel.mass_of(variant)  # an unknown variant: MeshError listing them
+    if not site.is_mesh and site.operators == "robust":
+        if variant != "weighted":
+            raise MeshError(f"operators='robust' comes with robust-laplacian's own mass: use variant='weighted', "
+                            f"or operators='reconstruct' for the {variant!r} kernel")
+        L, M = _robust_operators(site.P)
+        return HeatFlow.from_operators(L, M, normalize=normalize, tol=tol)
+    return HeatFlow(site.surface(), variant=variant, normalize=normalize, tol=tol)
+
+
+def smoother(site, method, k, variant="weighted", normalize=None, tol=1e-8):
+    """What computes ``Φ_t`` for a filter: the spectral kernel (:func:`kernel_of`) or the full one
+    (:func:`flow_of`, to ``tol``), by ``method`` (:data:`o3dheat.heatflow.METHODS`); either has
+    ``smooth(f, t)``.
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat_filters._common import Site, smoother
+    >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+    >>> type(smoother(site, "spectral", 5)).__name__, type(smoother(site, "exact", 5)).__name__
+    ('HeatKernel', 'HeatFlow')
+    """
+    if method not in heatflow.METHODS:
+        raise MeshError(f"unknown method {method!r}: use one of {', '.join(heatflow.METHODS)}")
+    return kernel_of(site, k, variant, normalize) if method == "spectral" else flow_of(site, variant, normalize, tol)
 
 
 def time_count(times, scales):

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from o3dheat import checks
 from o3dheat.errors import MeshError
 from o3dheat.filters import check_column, need_attribute
 from o3dheat.kernel import mass_of
 
-from ._common import Operators, Site, Variant, kernel_of
+from ._common import Method, Operators, Site, Variant, kernel_of, smoother
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,12 @@ class FeatureApprox:
         The kernel, a key of :data:`o3dheat.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
     k : int
-        Eigenpairs.
+        Eigenpairs of the spectral method; with "exact" they only place the default scale.
+    method : str
+        One of :data:`o3dheat.heatflow.METHODS`: "spectral" (the paper's truncated kernel, the
+        default) or "exact" (the full kernel, to ``tol``); see the ``heat_smooth`` filter.
+    tol : float
+        Relative W-norm error of the exact method, in (0, 1).
     operators : {"reconstruct", "robust"}
         For point clouds (only "reconstruct").
 
@@ -59,6 +65,8 @@ class FeatureApprox:
     keep_fraction: float | None = None
     variant: Variant = "weighted"
     k: int = 100
+    method: Method = "spectral"
+    tol: float = 1e-8
     operators: Operators = "reconstruct"
 
     outputs = ("<attribute>_glob", "<attribute>_loc")
@@ -71,6 +79,7 @@ class FeatureApprox:
         if self.delta is not None and self.keep_fraction is not None:
             raise MeshError("give delta or keep_fraction, not both")
         mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
+        checks.tolerance(self.tol)
 
     def plan(self, columns):
         """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
@@ -90,9 +99,11 @@ class FeatureApprox:
         site = Site(geometry, self.operators)
         f, V, F, g = site.scalar_on_surface(self.attribute, self.column)
         A = o3dheat.simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)
-        K = kernel_of(site, self.k, variant=self.variant)
-        t = self.t if self.t is not None else float(K.scales(10)[self.scale - 1])
-        glob, _ = o3dheat.feature_driven(K, g, A, t)
+        if self.t is None:  # the paper's scales, from the spectrum
+            t = float(kernel_of(site, self.k, variant=self.variant).scales(10)[self.scale - 1])
+        else:
+            t = self.t
+        glob, _ = o3dheat.feature_driven(smoother(site, self.method, self.k, self.variant, tol=self.tol), g, A, t)
         glob = site.from_surface(glob)
         site.set(f"{self.attribute}_glob", glob)
         site.set(f"{self.attribute}_loc", f - glob)

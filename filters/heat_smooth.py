@@ -4,16 +4,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from o3dheat import checks
 from o3dheat.errors import MeshError
 from o3dheat.filters import check_column, need_attribute
 from o3dheat.kernel import mass_of
 
-from ._common import Grid, Normalization, Operators, Site, Variant, kernel_of, time_count, times_of
+from ._common import (Grid, Method, Normalization, Operators, Site, Variant, kernel_of, smoother,
+                      time_count, times_of)
 
 
 @dataclass(frozen=True)
 class HeatSmooth:
-    """Smooth a vertex attribute with the heat kernel: ``Φ_t f = X D_t Xᵀ W f`` (paper eq. (5)).
+    """Smooth a vertex attribute with the heat kernel: ``Φ_t f`` (paper eq. (5)), spectral
+    (``X_k D_t X_kᵀ W f``, k eigenpairs) or exact (the full kernel ``exp(−(t/2) W⁻¹L)``).
 
     Parameters
     ----------
@@ -39,7 +42,16 @@ class HeatSmooth:
     normalize : None or str
         One of :data:`o3dheat.kernel.NORMALIZATIONS`; "lambda2": the scale-invariant kernel.
     k : int
-        Eigenpairs.
+        Eigenpairs of the spectral method; with "exact" they only place the default scales.
+    method : str
+        One of :data:`o3dheat.heatflow.METHODS`. "spectral" (the default, the paper's
+        computation): the truncated kernel on k eigenpairs, which is band-limited, so that ``k``
+        smooths too (at the paper's scales more than ``t`` does). "exact": the full kernel
+        (:class:`o3dheat.HeatFlow`), to ``tol``: ``t`` alone smooths. Without ``times`` the scales
+        still come from the spectrum (the paper's ``t_i = (i/10)/λ_k``); give ``times`` to skip
+        the eigensolve.
+    tol : float
+        Relative W-norm error of the exact method, in (0, 1).
     output : str or None
         Default "<attribute>_smooth": (n,) for one time, (n, T) for T times.
     operators : {"reconstruct", "robust"}
@@ -51,6 +63,9 @@ class HeatSmooth:
     >>> m = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20), "scalar", kind="height")
     >>> flt.apply(m, "heat_smooth", attribute="height", k=30).vertex["height_smooth"].shape
     SizeVector[762, 10]
+    >>> out = flt.apply(m, "heat_smooth", attribute="height", method="exact", times=(0.01, 0.1))
+    >>> out.vertex["height_smooth"].shape
+    SizeVector[762, 2]
     """
 
     attribute: str = "height"
@@ -61,6 +76,8 @@ class HeatSmooth:
     variant: Variant = "weighted"
     normalize: Normalization = None
     k: int = 100
+    method: Method = "spectral"
+    tol: float = 1e-8
     output: str | None = None
     operators: Operators = "reconstruct"
 
@@ -70,6 +87,7 @@ class HeatSmooth:
         if self.k < 1 or self.scales < 1:
             raise MeshError("k and scales must be positive")
         mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
+        checks.tolerance(self.tol)
         if self.times is not None and any(t < 0 for t in self.times):
             raise MeshError("times must be >= 0")
 
@@ -105,8 +123,12 @@ class HeatSmooth:
         self._columns_out(f.shape[1] if f.ndim == 2 else 1)  # checked before the eigensolve
         if f.ndim == 2 and f.shape[1] == 1 and count > 1:  # one column: (n, T) like an (n,) field
             f = f[:, 0]
-        K = kernel_of(site, self.k, self.variant, self.normalize)
-        t = times_of(K, self.times, self.scales, self.grid)
-        g = K.smooth(site.to_surface(f), t if len(t) > 1 else float(t[0]))
+        K = smoother(site, self.method, self.k, self.variant, self.normalize, self.tol)
+        if self.times or self.method == "spectral":
+            t = times_of(K, self.times, self.scales, self.grid)
+        else:  # the scales are defined by the spectrum
+            t = times_of(kernel_of(site, self.k, self.variant, self.normalize), None, self.scales, self.grid)
+        t = t if len(t) > 1 else float(t[0])
+        g = K.smooth(site.to_surface(f), t)
         site.set(self.output or f"{self.attribute}_smooth", site.from_surface(g))
         return site.result()

@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import MeshError
 
-__all__ = ["values", "field", "count", "times", "vertex_set"]
+__all__ = ["values", "field", "count", "times", "tolerance", "vertex_set"]
 
 
 def values(x):
@@ -106,6 +106,25 @@ def times(t):
     if not np.all(np.isfinite(t_arr)) or np.any(t_arr < 0):
         raise MeshError(f"times must be finite and >= 0 (the backward heat equation is ill-posed), got {t}")
     return t_arr
+
+
+def tolerance(tol, name="tol"):
+    """A relative tolerance: a real number in (0, 1).
+
+    Examples
+    --------
+    >>> from o3dheat.checks import tolerance
+    >>> tolerance(1e-8)
+    1e-08
+    >>> tolerance(0)
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: tol must be a number in (0, 1), got 0
+    """
+    if isinstance(tol, bool) or not isinstance(tol, (int, float, np.integer, np.floating)) \
+            or not (np.isfinite(tol) and 0 < tol < 1):
+        raise MeshError(f"{name} must be a number in (0, 1), got {tol!r}")
+    return float(tol)
 
 
 def vertex_set(A, n, name="A"):

@@ -15,7 +15,7 @@ import logging
 import sys
 from pathlib import Path
 
-from . import fem, kernel
+from . import fem, heatflow, kernel
 from .errors import MeshError, SolverError
 
 __all__ = ["main"]
@@ -69,6 +69,7 @@ study.toml:
   k = 60
   scales = 10
   grid = "paper"                     # <GRIDS>: each kernel's scales on its reference spectrum
+  method = "spectral"                # <METHODS>: "exact" smooths with the full kernel
   kernels = <VARIANTS>   # o3dheat.kernel.VARIANTS (default: all)
   descriptors = ["hks_density", "hks_paper", "smooth_height", "eigenvalues"]
   [meshes]
@@ -93,7 +94,8 @@ def _epilog(name):
     import json
 
     return (EXAMPLES[name].replace("<VARIANTS>", json.dumps(list(kernel.VARIANTS), ensure_ascii=False))
-            .replace("<GRIDS>", "one of " + ", ".join(map(json.dumps, kernel.GRIDS))))
+            .replace("<GRIDS>", "one of " + ", ".join(map(json.dumps, kernel.GRIDS)))
+            .replace("<METHODS>", "one of " + ", ".join(map(json.dumps, heatflow.METHODS))))
 
 
 def _sub(sub, name, help_text):

@@ -43,7 +43,14 @@ from .linalg import available_memory, check_memory, factorize
 from .mesh import prepare
 from .spectrum import memoized, shared_eigensolve
 
-__all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "SHIFT_RANGE"]
+__all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "SHIFT_RANGE", "METHODS"]
+
+#: the two forms of ``Φ_t f`` (``method=`` of the ``heat_smooth`` and ``feature_approx`` filters,
+#: of :func:`o3dheat.study.robustness_study` and ``o3dheat figure``): "spectral", the paper's
+#: truncated ``X_k D_t X_kᵀ W f`` (:class:`o3dheat.HeatKernel`), the default; "exact", the full
+#: kernel (:class:`HeatFlow`)
+METHODS = ("spectral", "exact")
+_OPERATORS = object()  # HeatFlow(mesh=_OPERATORS): made by from_operators
 
 #: most ratio τ_max/τ_min of the times one shift (one factorization) serves; wider ranges are
 #: split, each part with its own factor
@@ -128,19 +135,24 @@ class _Operators:
     """A mesh's operators for the flow: L, the mass W (None for the identity), the parts (the null
     space of L), a bound of the largest eigenvalue, and timings. Shared through the cache."""
 
-    def __init__(self, prep, mass):
+    def __init__(self, L, W, mass, seconds=0.0):
         t0 = time.perf_counter()
-        L, W, _ = fem.operators(prep.V, prep.F, mass)
-        self.L = sp.csr_matrix(L)
-        self.W = None if mass == "identity" else sp.csr_matrix(W)
+        self.L = sp.csr_matrix(L, dtype=np.float64)
+        self.W = None if W is None else sp.csr_matrix(W, dtype=np.float64)
         self.mass = mass
         self.parts, self.labels = connected_components(self.L, directed=False)
-        self.d = np.ones(len(prep.V)) if self.W is None else np.asarray(self.W.sum(axis=1)).ravel()
+        self.d = np.ones(self.L.shape[0]) if self.W is None else np.asarray(self.W.sum(axis=1)).ravel()
         # Gershgorin on D⁻¹L, D the lumped mass (W itself when diagonal): the consistent mass is
         # >= D/4 element by element (each element's mass has eigenvalues |t|/12 x {1, 1, 4})
         rows = np.asarray(abs(self.L).sum(axis=1)).ravel()
         self.lam_max = float(np.max(rows / np.maximum(self.d, 1e-300))) * (4.0 if mass == "consistent" else 1.0)
-        self.seconds = time.perf_counter() - t0
+        self.seconds = seconds + time.perf_counter() - t0
+
+    @classmethod
+    def of_mesh(cls, prep, mass):
+        t0 = time.perf_counter()
+        L, W, _ = fem.operators(prep.V, prep.F, mass)
+        return cls(L, None if mass == "identity" else W, mass, time.perf_counter() - t0)
 
     @property
     def nbytes(self):
@@ -198,6 +210,10 @@ class HeatFlow:
         Factorization backend (:func:`o3dheat.linalg.factorize`).
     cache : bool
         Share the operators and factors through the in-memory cache.
+    tol : float
+        The default tolerance of :meth:`apply` (so that a HeatFlow stands in for a
+        :class:`o3dheat.HeatKernel` in :func:`o3dheat.scale_space` and
+        :func:`o3dheat.feature_driven`).
 
     Examples
     --------
@@ -210,28 +226,82 @@ class HeatFlow:
     ((482, 3, 2), True)
     """
 
-    def __init__(self, mesh, variant="weighted", normalize=None, transfer=None, backend="auto", cache=True):
+    def __init__(self, mesh, variant="weighted", normalize=None, transfer=None, backend="auto", cache=True,
+                 tol=1e-8):
         mass = mass_of(variant)
+        self.tol = checks.tolerance(tol)
         if not (normalize is None or isinstance(normalize, str)) or normalize not in NORMALIZATIONS:
             raise MeshError(f"unknown normalize {normalize!r}: use one of {', '.join(map(repr, NORMALIZATIONS))}")
         self.variant, self.normalize, self.transfer = variant, normalize, transfer
         self._phi = transfer_function(transfer)
         self.backend, self.cache = backend, bool(cache)
+        self._lambda2 = None
+        self._local = {}
+        if mesh is _OPERATORS:  # from_operators: set by the caller
+            return
         self._prep = prepare(mesh)
         self._key = _geometry_key(self._prep, mass)
         t0 = time.perf_counter()
-        self._ops = self._cached(("heatflow-operators", self._key), lambda: _Operators(self._prep, mass))
+        self._ops = self._cached(("heatflow-operators", self._key), lambda: _Operators.of_mesh(self._prep, mass))
         self._assembled = time.perf_counter() - t0
-        self._lambda2 = None
         if self._phi is not None and self.normalize is None:
             self._check_transfer(1.0)  # with normalize, once λ_2 is known (first apply)
+
+    @classmethod
+    def from_operators(cls, L, W, normalize=None, transfer=None, backend="auto", tol=1e-8):
+        """The full kernel ``exp(−(t/2) W⁻¹L)`` of operators built elsewhere (for example
+        robust-laplacian's point-cloud Laplacian and mass), like
+        :func:`o3dheat.spectrum.eigensolve_operators`: no faces, no repairs, not cached.
+
+        Parameters
+        ----------
+        L : (n, n) sparse matrix
+            Symmetric positive semi-definite, its null space the constants of each connected part
+            of its graph (a Laplacian).
+        W : (n, n) sparse matrix or None
+            Symmetric positive definite mass; None for the identity.
+        normalize, transfer, backend, tol
+            As for :class:`HeatFlow`.
+
+        Examples
+        --------
+        >>> import numpy as np, scipy.sparse as sp, o3dheat
+        >>> L = sp.diags([[1., 2, 2, 1], [-1., -1, -1], [-1., -1, -1]], [0, 1, -1])   # a path graph
+        >>> flow = o3dheat.HeatFlow.from_operators(L, None)
+        >>> g = flow.apply([1.0, 0, 0, 0], 100.0)
+        >>> g.round(6).tolist()                              # the mean, at large times
+        [0.25, 0.25, 0.25, 0.25]
+        """
+        from .mesh import Prepared
+
+        L = sp.csr_matrix(L, dtype=np.float64)
+        n = L.shape[0]
+        if L.shape != (n, n) or (W is not None and W.shape != (n, n)):
+            raise MeshError(f"L and W must be square and of one size, got {L.shape} and {getattr(W, 'shape', None)}")
+        for name, M in (("L", L), ("W", W)):
+            if M is not None and M.nnz and abs(M - M.T).max() > 1e-10 * abs(M).max():
+                raise MeshError(f"{name} must be symmetric")
+        flow = cls(_OPERATORS, variant="weighted", normalize=normalize, transfer=transfer, backend=backend,
+                   cache=False, tol=tol)
+        flow.variant = "given"
+        flow._prep = Prepared(np.zeros((n, 3)), np.zeros((0, 3), np.int64), np.arange(n), n)
+        flow._key = None
+        flow._ops = _Operators(L, W, "given")
+        flow._assembled = flow._ops.seconds
+        return flow
 
     def __repr__(self):
         return (f"HeatFlow(n={self.n}, variant={self.variant!r}, normalize={self.normalize!r}, "
                 f"transfer={'yes' if self.transfer is not None else None})")
 
     def _cached(self, key, compute):
-        return memoized(key, compute) if self.cache else compute()
+        """``compute()`` once per key: shared through the in-memory cache, or kept by this
+        HeatFlow alone (``cache=False``)."""
+        if self.cache:
+            return memoized(key, compute)
+        if key not in self._local:
+            self._local[key] = compute()
+        return self._local[key]
 
     @property
     def n(self):
@@ -248,7 +318,7 @@ class HeatFlow:
     @property
     def faces(self):
         """(m, 3) int64: the faces the operators are built on, in the input's vertex numbering
-        (what the topology of smoothed fields is computed on).
+        (what the topology of smoothed fields is computed on); None for :meth:`from_operators`.
 
         Examples
         --------
@@ -256,6 +326,8 @@ class HeatFlow:
         >>> o3dheat.HeatFlow(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)).faces.shape
         (224, 3)
         """
+        if self._key is None:
+            return None  # operators built elsewhere
         return self._prep.keep[self._prep.F]
 
     @property
@@ -270,11 +342,18 @@ class HeatFlow:
         2.0
         """
         if self._lambda2 is None:
-            prep = self._prep
-            k = min(self._ops.parts + 1, len(prep.V))
-            spec = shared_eigensolve(prep.V, prep.F, k=k, mass=self._ops.mass)
-            self._lambda2 = first_nonzero(spec.eigenvalues)
+            self._lambda2 = first_nonzero(self._spectrum(self._ops.parts + 1).eigenvalues)
         return self._lambda2
+
+    def _spectrum(self, k):
+        """The smallest k eigenpairs of this flow's operators (shared, cached)."""
+        prep, ops = self._prep, self._ops
+        if self._key is None:  # operators built elsewhere
+            from .spectrum import eigensolve_operators
+
+            W = sp.identity(ops.L.shape[0]) if ops.W is None else ops.W
+            return eigensolve_operators(ops.L, W, k=min(k, ops.L.shape[0]))
+        return shared_eigensolve(prep.V, prep.F, k=min(k, len(prep.V)), mass=ops.mass)
 
     def _unit(self):
         """The factor of the operator: 1, or 1/λ_2 for normalize="lambda2"."""
@@ -318,7 +397,7 @@ class HeatFlow:
         want = max(BASIS_BYTES_PER_VERTEX * len(self._prep.V), 512 * 2**20)
         return want if free is None else max(min(want, free // 2), 64 * 2**20)
 
-    def apply(self, f, t, tol=1e-8, *, return_report=False, max_steps=1000):
+    def apply(self, f, t, tol=None, *, return_report=False, max_steps=1000):
         """``Φ_t f = exp(−(t/2) W⁻¹L) f`` (the full kernel) at one or many times.
 
         Parameters
@@ -327,9 +406,10 @@ class HeatFlow:
             Field(s) per vertex of the input mesh.
         t : float or (T,) array_like
             Times >= 0, paper convention (``exp(−λ t / 2)``), in any order.
-        tol : float
+        tol : float, optional
             Relative error asked, in (0, 1): ``‖Φ_t f − result‖_W <= tol ‖f − f₀‖_W`` for each
-            column and time by the a posteriori estimate (``f₀``: the W-mean on each connected part).
+            column and time by the a posteriori estimate (``f₀``: the W-mean on each connected
+            part). Default: the HeatFlow's ``tol``.
         return_report : bool
             Also return a :class:`FlowReport`.
         max_steps : int
@@ -357,9 +437,7 @@ class HeatFlow:
         >>> round(float(g @ z / (z @ z)), 2)                  # ≈ exp(−λ t / 2) = exp(−1)
         0.37
         """
-        if isinstance(tol, bool) or not isinstance(tol, (int, float, np.floating, np.integer)) \
-                or not (np.isfinite(tol) and 0 < tol < 1):
-            raise MeshError(f"tol must be a number in (0, 1), got {tol!r}")
+        tol = self.tol if tol is None else checks.tolerance(tol)
         if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
             raise MeshError(f"max_steps must be a positive integer, got {max_steps!r}")
         f = checks.field(f, self.n)
@@ -372,7 +450,7 @@ class HeatFlow:
         c, T = F.shape[1], len(times)
         check_memory(8 * (len(prep.V) + self.n) * c * T, f"the result ({c} fields x {T} times)",
                      "ask for fewer fields or times at once")
-        U, report = self._flow(F, times, float(tol), int(max_steps))
+        U, report = self._flow(F, times, tol, int(max_steps))
         out = prep.expand(U.reshape(len(prep.V), c, T))
         if f.ndim == 1:
             out = out[:, 0, :]
@@ -436,7 +514,7 @@ class HeatFlow:
         report = FlowReport(tol, times.copy(), estimate, steps, shifts, solves, timings, backend)
         return U, report
 
-    def error(self, f, t, tol=1e-8):
+    def error(self, f, t, tol=None):
         """``ε∞ = ‖f − Φ_t f‖∞ / ‖f‖∞`` of the full kernel (0 when f = 0), like
         :meth:`o3dheat.HeatKernel.error`.
 
@@ -470,11 +548,9 @@ class HeatFlow:
         """
         from .kernel import HeatKernel
 
-        prep = self._prep
-        k = checks.count(k, "k")
-        spec = shared_eigensolve(prep.V, prep.F, k=min(k, len(prep.V)), mass=self._ops.mass)
-        return HeatKernel(spec, variant=self.variant, normalize=self.normalize, transfer=self.transfer).scales(
-            count, grid)
+        spec = self._spectrum(checks.count(k, "k"))
+        variant = None if self._key is None else self.variant
+        return HeatKernel(spec, variant=variant, normalize=self.normalize, transfer=self.transfer).scales(count, grid)
 
 
 def heat_flow(mesh, f, t, *, variant="weighted", normalize=None, transfer=None, tol=1e-8,
@@ -511,5 +587,5 @@ def heat_flow(mesh, f, t, *, variant="weighted", normalize=None, transfer=None, 
     >>> F.shape, bool(np.all(np.abs(F).max(axis=0)[1:] < np.abs(F).max(axis=0)[:-1]))
     ((600, 3), True)
     """
-    flow = HeatFlow(mesh, variant=variant, normalize=normalize, transfer=transfer, backend=backend)
-    return flow.apply(f, t, tol=tol, return_report=return_report)
+    flow = HeatFlow(mesh, variant=variant, normalize=normalize, transfer=transfer, backend=backend, tol=tol)
+    return flow.apply(f, t, return_report=return_report)

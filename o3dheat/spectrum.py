@@ -37,7 +37,7 @@ from .linalg import OutOfMemory, available_memory, check_memory, factorize
 from .mesh import prepare
 
 __all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "peak_memory", "default_cache_dir", "shared_eigensolve", "set_cache",
-           "memoized", "cache_max_bytes"]
+           "memoized", "cache_max_bytes", "inverse_mass_bound"]
 
 log = logging.getLogger("o3dheat")
 
@@ -85,6 +85,13 @@ class Spectrum:
     faces : (m, 3) int64 ndarray or None
         The faces the operators were built on (after the repairs of :func:`o3dheat.mesh.prepare`),
         in the caller's vertex numbering: what the topology of smoothed fields is computed on.
+    inverse_mass_bound : (n,) float64 ndarray or None
+        An upper bound of the diagonal of the inverse mass (of the welded vertex a vertex is a
+        copy of; 0 at unreferenced vertices): the sum ``Σ_b x_b(i)²`` over a complete
+        W-orthonormal eigenbasis, which bounds what a truncated spectrum leaves out of a heat
+        kernel signature (:meth:`o3dheat.HeatKernel.hks`). Exact for the diagonal masses;
+        ``4 / (B 1)_i`` for the consistent mass (``B ⪰ D/4`` with ``D = diag(B 1)``: each
+        element's mass is ``|t|/12 (I + 1 1ᵀ)``). None for a non-diagonal mass built elsewhere.
 
     Examples
     --------
@@ -108,6 +115,7 @@ class Spectrum:
     sigma: float = float("nan")
     timings: dict = field(default_factory=dict)
     faces: np.ndarray | None = None
+    inverse_mass_bound: np.ndarray | None = None
 
     @property
     def n(self):
@@ -576,14 +584,39 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         c = connected_components(L, directed=False)[0]
         log.warning("all %d eigenvalues are 0: the mesh has %d connected components, each with a constant "
                     "eigenfunction of eigenvalue 0; ask for k > %d to get non-constant ones", k, c, c)
+    bound = inverse_mass_bound(B, mass)
     n = prep.n_input
     if r < n:  # unreferenced or welded vertices: operators P D⁻¹ A D⁻¹ Pᵀ, X_in = P X (see mesh)
         L, B = prep.expand_operator(L), prep.expand_operator(B)
         if prep.weld is not None:
             areas = areas / prep.multiplicity  # the copies share the area: its sum stays the area
-        X, areas = prep.expand(X), prep.expand(areas)
+        X, areas, bound = prep.expand(X), prep.expand(areas), prep.expand(bound)
     return Spectrum(lam, X, sp.csc_matrix(L), sp.csc_matrix(B), mass, areas, used, res, s, timings,
-                    faces=prep.keep[F])
+                    faces=prep.keep[F], inverse_mass_bound=bound)
+
+
+def inverse_mass_bound(B, mass):
+    """An upper bound of ``diag(B⁻¹)`` for a mass of :data:`o3dheat.fem.MASS_KINDS` (or "given"):
+    ``1 / B_ii`` for a diagonal mass (exact), ``4 / (B 1)_i`` for the consistent one (each
+    element's mass ``|t|/12 (I + 1 1ᵀ)`` is at least a quarter of its lumped mass ``|t|/3 I``);
+    None for a non-diagonal mass of unknown kind.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> from o3dheat.spectrum import inverse_mass_bound
+    >>> V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+    >>> B = o3dheat.mass_matrix(V, F)
+    >>> bool(np.all(np.linalg.inv(B.toarray()).diagonal() <= inverse_mass_bound(B, "consistent")))
+    True
+    """
+    B = sp.csr_matrix(B)
+    d = B.diagonal()
+    if mass != "consistent" and sp.csr_matrix(B - sp.diags(d)).count_nonzero() == 0:
+        return 1.0 / d
+    if mass == "consistent":
+        return 4.0 / np.asarray(B.sum(axis=1)).ravel()
+    return None
 
 
 def peak_memory(n, k=100, block=8):
@@ -720,7 +753,8 @@ def eigensolve_operators(L, B, k=100, sigma=None, backend="auto", method="auto",
         raise MeshError(f"k={k} exceeds the size {n}")
     lam, X, used, s, res, timings = _solve(L, B, k, method, sigma, backend, seed, tol, block)
     areas = np.asarray(B.sum(axis=1)).ravel()
-    return Spectrum(lam, X, L, B, "given", areas, used, res, s, timings)
+    return Spectrum(lam, X, L, B, "given", areas, used, res, s, timings,
+                    inverse_mass_bound=inverse_mass_bound(B, "given"))
 
 
 def _check_method(method):

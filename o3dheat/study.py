@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from .cluster import progress_bar, session, task_error
-from . import kernel
+from . import heatflow, kernel
 from .errors import MeshError
 
 __all__ = ["robustness_study", "DESCRIPTORS", "COLUMNS", "load_config"]
@@ -58,13 +58,16 @@ COLUMNS = ["mesh", "resampling", "kind", "kernel", "descriptor", "scale", "t", "
 
 
 # ------------------------------------------------------------------------------- computation
-def _descriptors(V, F, kernels, descriptors, k, times, axis, grid="paper", scales=10):
+def _descriptors(V, F, kernels, descriptors, k, times, axis, grid="paper", scales=10, method="spectral"):
     """({(kernel, descriptor): array} on one sampling, {kernel: times}); fields are (n, T).
 
     Each kernel is built from its own spectrum (:func:`o3dheat.kernel.heat_kernel`). ``times``
     maps each kernel to its times; None (the reference sampling) takes each kernel's own scales
-    (``grid``, ``scales``)."""
+    (``grid``, ``scales``). With ``method="exact"`` the smoothed fields (and their critical points)
+    come from the full kernel (:class:`o3dheat.HeatFlow`); a sampling then needs no spectrum unless
+    an HKS, the eigenvalues or its own scales are asked for."""
     from . import fem
+    from .heatflow import HeatFlow
     from .kernel import heat_kernel
     from .topology import Surface, critical_points
 
@@ -74,20 +77,23 @@ def _descriptors(V, F, kernels, descriptors, k, times, axis, grid="paper", scale
     curvature = _aligned(fem.mean_curvature(V, F)) if "smooth_curvature" in descriptors else None
     surface = Surface.from_faces(len(V), F) if "critical_points" in descriptors else None
     out, used = {}, {}
+    smooth_only = {"smooth_height", "smooth_curvature", "critical_points"}
     for kern in kernels:
-        K = heat_kernel((V, F), k=k, variant=kern)
+        spectral = method == "spectral" or times is None or not set(descriptors) <= smooth_only
+        K = heat_kernel((V, F), k=k, variant=kern) if spectral else None
         t = used[kern] = K.scales(scales, grid=grid) if times is None else times[kern]
+        S = K if method == "spectral" else HeatFlow((V, F), variant=kern, cache=False)
         for d in descriptors:
             if d.startswith("hks_"):
                 out[kern, d] = K.hks(t, form=d[len("hks_"):])
             elif d == "smooth_height":
-                out[kern, d] = K.smooth(height, t)
+                out[kern, d] = S.smooth(height, t)
             elif d == "smooth_curvature":
-                out[kern, d] = K.smooth(curvature, t)
+                out[kern, d] = S.smooth(curvature, t)
             elif d == "eigenvalues":
                 out[kern, d] = K.spectrum.eigenvalues.copy()
             elif d == "critical_points":
-                H = out[kern, "smooth_height"] if (kern, "smooth_height") in out else K.smooth(height, t)
+                H = out[kern, "smooth_height"] if (kern, "smooth_height") in out else S.smooth(height, t)
                 out[kern, d] = np.array([sum(critical_points(surface, H[:, i]).counts)
                                          for i in range(len(t))], dtype=np.float64)
     return out, used
@@ -115,7 +121,7 @@ def _reference(V, F, cfg):
     with threadpool_limits(1), threads(1):
         axis = int(np.argmax(np.ptp(V, axis=0)))
         desc, times = _descriptors(V, F, cfg["kernels"], cfg["descriptors"], cfg["k"], None, axis,
-                                   cfg["grid"], cfg["scales"])
+                                   cfg["grid"], cfg["scales"], cfg.get("method", "spectral"))
         areas = np.asarray(mass_matrix(V, F, "lumped").diagonal())
     return {"times": times, "axis": axis, "areas": areas, "descriptors": desc, "V": V, "F": F}
 
@@ -144,7 +150,8 @@ def _task(mesh_name, res_name, spec, ref, cfg):
         with threadpool_limits(1), threads(1):
             params = {key: v for key, v in spec.items() if key not in ("kind", "name")}
             r = resample((ref["V"], ref["F"]), kind, **params)
-            desc, _ = _descriptors(r.V, r.F, cfg["kernels"], cfg["descriptors"], cfg["k"], ref["times"], ref["axis"])
+            desc, _ = _descriptors(r.V, r.F, cfg["kernels"], cfg["descriptors"], cfg["k"], ref["times"], ref["axis"],
+                                   method=cfg.get("method", "spectral"))
             rows = []
             for (kern, d), value in desc.items():
                 base = ref["descriptors"][kern, d]
@@ -272,7 +279,7 @@ def _cost(spec, n):
 
 
 def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS, scales=10, k=100,
-                     out=None, scheduler=None, progress=None, grid="paper"):
+                     out=None, scheduler=None, progress=None, grid="paper", method="spectral"):
     """Run a robustness study (see the module docstring for what is measured).
 
     Parameters
@@ -305,6 +312,12 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
     grid : str
         The scale grid, one of :data:`o3dheat.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales`), on
         each kernel's reference spectrum.
+    method : str
+        How the smoothed descriptors ("smooth_height", "smooth_curvature", "critical_points") are
+        computed, one of :data:`o3dheat.heatflow.METHODS`: "spectral" (the truncated kernel on
+        k eigenpairs, the paper's) or "exact" (the full kernel, :class:`o3dheat.HeatFlow`: the
+        truncation no longer smooths, and resamplings need no eigensolve for these descriptors).
+        The scales stay those of each kernel's reference spectrum either way.
 
     Returns
     -------
@@ -343,7 +356,11 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
         raise MeshError("scales must be >= 1 and k >= 2 (integers)")
     if not isinstance(grid, str) or grid not in kernel.GRIDS:
         raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(kernel.GRIDS)}")
+    if not isinstance(method, str) or method not in heatflow.METHODS:
+        raise MeshError(f"unknown method {method!r}: use one of {', '.join(heatflow.METHODS)}")
     cfg = {"kernels": kernels, "descriptors": descriptors, "scales": int(scales), "k": int(k), "grid": grid}
+    if method != "spectral":  # (a spectral study's folder stays resumable by earlier versions' record)
+        cfg["method"] = method
     arrays = {}
     for name, mesh in meshes.items():
         p = prepare(mesh)
@@ -451,6 +468,7 @@ def load_config(path):
         k = 100
         scales = 10
         grid = "paper"                   # one of o3dheat.kernel.GRIDS
+        method = "spectral"              # or "exact": the full kernel for the smoothed descriptors
         kernels = ["weighted"]                           # of o3dheat.kernel.VARIANTS (default: all)
         descriptors = ["hks_density", "smooth_height"]   # of DESCRIPTORS (default: all)
         [meshes]
@@ -481,11 +499,12 @@ def load_config(path):
 
     path = Path(path)
     data = read_toml(path)
-    allowed = {"k", "scales", "grid", "kernels", "descriptors", "meshes", "resampling"}
+    allowed = {"k", "scales", "grid", "method", "kernels", "descriptors", "meshes", "resampling"}
     unknown = set(data) - allowed
     if unknown:
         raise MeshError(f"{path}: unknown settings {sorted(unknown)}; allowed: {sorted(allowed)}")
     expected = {"k": (int, "an integer"), "scales": (int, "an integer"), "grid": (str, "a string"),
+                "method": (str, "a string"),
                 "kernels": (list, "a list of names"), "descriptors": (list, "a list of names"),
                 "meshes": (dict, "a [meshes] table of name = \"file or builtin:NAME\""),
                 "resampling": (list, "[[resampling]] tables")}

@@ -130,6 +130,34 @@ def test_heat_smooth_and_hks_match_the_kernel(sphere):
     assert np.allclose(h, K.hks(K.scales(), form="paper"))
 
 
+def test_the_exact_method_is_the_full_kernel(sphere, monkeypatch):
+    V, F = (sphere.vertex.positions.numpy(), sphere.triangle.indices.numpy())
+    f = V[:, 2] + 0.1 * np.sin(7 * V[:, 0])
+    m = tmesh(V, F, f=f)
+    out = flt.apply(m, "heat_smooth", attribute="f", method="exact", times=[0.01, 0.1], tol=1e-10)
+    assert np.allclose(out.vertex["f_smooth"].numpy(), o3dheat.heat_flow((V, F), f, [0.01, 0.1], tol=1e-10),
+                       rtol=0, atol=1e-12)
+    # without times: the paper's scales of the k-eigenpair spectrum, the full kernel at them
+    K = o3dheat.HeatKernel(o3dheat.eigensolve((V, F), k=30))
+    exact = flt.apply(m, "heat_smooth", attribute="f", method="exact", k=30).vertex["f_smooth"].numpy()
+    assert np.allclose(exact, o3dheat.heat_flow((V, F), f, K.scales()), rtol=0, atol=1e-9)
+    spectral = flt.apply(m, "heat_smooth", attribute="f", k=30).vertex["f_smooth"].numpy()
+    assert np.abs(exact - spectral).max() > 1e-3  # the truncation smooths more at t_1
+    # feature_approx: f_glob = Φ_t(pr_A f) of the full kernel
+    A = o3dheat.simplify_critical_points((V, F), f, keep_fraction=0.5)
+    glob = flt.apply(m, "feature_approx", attribute="f", keep_fraction=0.5, method="exact", t=0.05)
+    assert np.allclose(glob.vertex["f_glob"].numpy(),
+                       o3dheat.heat_flow((V, F), o3dheat.approximation.project(f, A), 0.05), atol=1e-9)
+    # a bad method or tol is refused before any work
+    from o3dheat import spectrum
+
+    monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("an eigensolve ran"))
+    for bad, match in (({"method": "fast"}, "method must be one of 'spectral', 'exact'"),
+                       ({"method": "exact", "tol": 0.0}, r"tol must be a number in \(0, 1\)")):
+        with pytest.raises(MeshError, match=match):
+            flt.Chain([("heat_smooth", {"attribute": "f", **bad})])(m)
+
+
 def test_topology_filters(sphere):
     V, F = sphere.vertex.positions.numpy(), sphere.triangle.indices.numpy()
     f = V[:, 2] + 0.05 * np.random.default_rng(0).standard_normal(len(V))
@@ -354,6 +382,8 @@ def test_filters_on_point_clouds(operators):
                o3d.geometry.PointCloud(o3d.utility.Vector3dVector(P))):
         out = flt.Chain([("scalar", {"kind": "height", "operators": operators}),
                          ("heat_smooth", {"k": 20, "operators": operators, "times": [0.05]}),
+                         ("heat_smooth", {"operators": operators, "times": [0.05], "method": "exact",
+                                          "output": "height_exact"}),
                          ("hks", {"k": 20, "operators": operators, "scales": 3}),
                          ("colorize", {"attribute": "hks", "column": 0})])(pc)
         assert isinstance(out, o3d.t.geometry.PointCloud)
@@ -361,6 +391,7 @@ def test_filters_on_point_clouds(operators):
         # Φ_t of the height on the unit sphere: exp(-2 t / 2) z (an l = 1 harmonic)
         assert np.corrcoef(s, P[:, 2])[0, 1] > 0.99
         assert np.allclose(s, np.exp(-0.05) * P[:, 2], atol=0.05)
+        assert np.allclose(out.point["height_exact"].numpy(), np.exp(-0.05) * P[:, 2], atol=0.05)
         assert out.point["hks"].shape == (3000, 3)
     if operators == "robust":
         with pytest.raises(o3dheat.MeshError, match="surface"):

@@ -362,3 +362,57 @@ def test_finite_input_never_gives_silent_inf(K, spec):
         HeatKernel(spec, transfer=lambda lam: -1e300 * lam).smooth(f, 1.0)
     with pytest.raises(o3dheat.SolverError, match="float64 range"):
         K.inverse(big, 2 * np.log(1e10) / K.rates[-1])  # amplifies the top mode by 1e10
+
+
+# ------------------------------------------------------------------------ truncation certificates
+def _certificate_meshes():
+    from conftest import grid, irregular
+
+    from test_heatflow import two_parts
+
+    V, F = icosphere(2)
+    V2 = np.vstack([V, [[5.0, 5.0, 5.0]], V[F[0]]])  # an unreferenced vertex, welded copies of a face
+    F2 = np.vstack([F[1:], len(V) + 1 + np.arange(3)[None]])
+    return {"irregular": irregular(), "boundary": grid(2.0, 1.0, 24, 12, jitter=0.3), "two parts": two_parts(),
+            "welded": (V2, F2)}
+
+
+@pytest.mark.parametrize("variant", list(o3dheat.VARIANTS))
+def test_truncation_certificates_hold_against_complete_spectra(variant):
+    for name, (V, F) in _certificate_meshes().items():
+        n_ref = len(o3dheat.mesh.prepare((V, F)).V)
+        full = o3dheat.heat_kernel((V, F), k=n_ref, variant=variant)
+        part = o3dheat.heat_kernel((V, F), k=30, variant=variant)
+        t = np.array([0.0, 1e-3, 1e-2, 0.1, 1.0, 40.0]) / part.spectrum.eigenvalues[-1]
+        W = full.spectrum.mass
+        f = np.column_stack([V[:, 0] + np.sin(5 * V[:, 1]), V[:, 0] * V[:, 1] + V[:, 2] ** 2])
+        F_part, bound = part.smooth(f, t, return_bound=True)
+        E = full.smooth(f, t) - F_part
+        WE = (W @ E.reshape(len(V), -1)).reshape(E.shape)
+        err = np.sqrt(np.maximum(np.einsum("ict,ict->ct", E, WE), 0.0))
+        nf = np.sqrt(np.einsum("ic,ic->c", f, W @ f))[:, None]
+        assert np.all(err / nf <= bound * (1 + 1e-9) + 1e-12), (name, (err / nf - bound).max())  # = at t = 0
+        assert bound[:, -1].max() < 1e-7  # late: exp(-20)
+        for form in o3dheat.kernel.HKS_FORMS:
+            h, hb = part.hks(t, form=form, return_bound=True)
+            d = full.hks(t, form=form) - h
+            slack = 1e-9 * np.abs(full.hks(t, form=form)).max()
+            if form == "density":
+                assert np.all(d >= -slack), (name, form)  # the truncation only leaves out positive terms
+            assert np.all(np.abs(d) <= hb + slack), (name, form, (np.abs(d) - hb).max())
+        assert hb[:, -1].max() < 1e-5 * np.abs(h[:, -1]).max()  # late: exp(-20) times the tails
+
+
+def test_certificates_need_an_increasing_transfer_function():
+    V, F = icosphere(2)
+    spec = o3dheat.eigensolve((V, F), k=20)
+    f = V[:, 0]
+    ok = o3dheat.HeatKernel(spec, transfer=[0.0, 1.0, 0.1])
+    ok.smooth(f, 0.1, return_bound=True)
+    ok.hks(0.1, return_bound=True)
+    for transfer in ([0.0, 1.0, -0.1], lambda lam: lam):
+        K = o3dheat.HeatKernel(spec, transfer=transfer)
+        with pytest.raises(o3dheat.MeshError, match="transfer function that increases"):
+            K.smooth(f, 0.1, return_bound=True)
+        with pytest.raises(o3dheat.MeshError, match="transfer function that increases"):
+            K.hks(0.1, return_bound=True)

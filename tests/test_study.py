@@ -208,3 +208,29 @@ def test_dask_starts_the_largest_resamplings_first():
              "bad": {"kind": "subdivide", "iterations": "x"}}
     order = sorted(specs, key=lambda name: -_cost(specs[name], 1000))
     assert order == ["sub", "aniso", "jit", "bad", "rem", "dec"]
+
+
+def test_exact_method_smooths_with_the_full_kernel(monkeypatch):
+    from o3dheat import sampling, spectrum
+    from o3dheat.study import _descriptors
+
+    V, F = icosphere(2)
+    table = robustness_study({"s": (V, F)}, {"dec": {"kind": "decimate", "reduction": 0.5}}, kernels=["weighted"],
+                             descriptors=["smooth_height", "critical_points"], scheduler="sequential",
+                             progress=False, method="exact", **SMALL)
+    K = o3dheat.heat_kernel((V, F), k=20)
+    t = K.scales(3)  # the scales stay those of the reference spectrum
+    rows = table[table["descriptor"] == "smooth_height"]
+    np.testing.assert_allclose(rows["t"].to_numpy(), t, rtol=1e-12)
+    # the reference's smoothed height is the full kernel's
+    desc, _ = _descriptors(V, F, ["weighted"], ["smooth_height"], 20, {"weighted": t}, 2, method="exact")
+    ref = o3dheat.heat_flow((V, F), V[:, 2], t)
+    assert np.allclose(desc["weighted", "smooth_height"], ref, atol=1e-9)
+    assert not np.allclose(desc["weighted", "smooth_height"], K.smooth(V[:, 2], t), atol=1e-6)
+    # a resampling needs no eigensolve for these descriptors
+    r = sampling.decimate((V, F), reduction=0.5)
+    monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("an eigensolve ran"))
+    _descriptors(r.V, r.F, ["weighted"], ["smooth_height", "critical_points"], 20, {"weighted": t}, 2,
+                 method="exact")
+    with pytest.raises(o3dheat.MeshError, match="unknown method 'fast'"):
+        robustness_study({"s": (V, F)}, ["jitter"], method="fast", scheduler="sequential")
