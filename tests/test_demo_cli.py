@@ -27,6 +27,16 @@ def test_demo_writes_everything(tmp_path):
     text = "\n".join(lines)
     assert "eps_inf" in text and "backend" in text and "seconds per stage" in text
     assert len(out["errors"]) == 10
+    # the exact hierarchy beside the truncated one: the full kernel at the same times
+    import o3dheat
+
+    assert m.vertex["f_exact"].shape == (n, 10)
+    V, F, f = m.vertex.positions.numpy(), m.triangle.indices.numpy(), m.vertex["f"].numpy()
+    assert np.allclose(m.vertex["f_exact"].numpy(), o3dheat.heat_flow((V, F), f, out["scales"]), atol=1e-9)
+    cp = out["critical_points"]
+    exact, truncated = cp[21:31], cp[1:11]
+    assert exact[0] > 3 * truncated[0] and exact == sorted(exact, reverse=True)  # t alone smooths
+    assert "exact" in text and "certificate" in text and np.all(out["truncation_bound"] > 0)
 
 
 def test_demo_on_procedural_surface(tmp_path):

@@ -21,7 +21,7 @@ def test_paper_figures_for_a_mesh(tmp_path):
     index = figures.paper_figures((V, F), tmp_path / "figs", k=30, name="sphere")
     text = index.read_text()
     pngs = sorted((tmp_path / "figs").glob("*.png"))
-    assert len(pngs) == 8
+    assert len(pngs) == 10
     for p in pngs:
         assert p.name in text and not_blank(p)
     assert "red maxima, blue minima, green saddles" in text
@@ -43,7 +43,7 @@ def test_paper_figures_on_the_bunny(tmp_path):
 
     mesh, name = default_mesh()
     index = figures.paper_figures(mesh, tmp_path, k=60, name=name, up="y", max_faces=8000)
-    assert len(list(tmp_path.glob("*.png"))) == 8 and index.exists()
+    assert len(list(tmp_path.glob("*.png"))) == 10 and index.exists()
 
 
 def test_a_non_manifold_mesh_gets_its_figures_repaired_and_no_empty_folder_on_failure(tmp_path, caplog):
