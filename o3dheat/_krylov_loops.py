@@ -59,9 +59,19 @@ def subtract(Z, V, alpha, a, z):
             Z[i, k] -= alpha[k] * V[i, k]
 
 
-def spmm(indptr, indices, data, Z, out, a, z):
-    """Rows ``a..z`` of ``out = M Z``, ``M`` in CSR (each row's sum in the order of its entries)."""
+def spmm(indptr, indices, data, Z, out, labels, parts, a, z):
+    """Rows ``a..z`` of ``out = M Z``, ``M`` in CSR (each row's sum in the order of its entries);
+    returns the partial sums of ``out`` over each part (parts, c), as :func:`part_sums`."""
     c = Z.shape[1]
+    sums = np.zeros((parts, c))
+    if c == 1:
+        for i in range(a, z):
+            s = 0.0
+            for p in range(indptr[i], indptr[i + 1]):
+                s += data[p] * Z[indices[p], 0]
+            out[i, 0] = s
+            sums[labels[i], 0] += s
+        return sums
     acc = np.zeros(c)
     for i in range(a, z):
         for k in range(c):
@@ -71,8 +81,11 @@ def spmm(indptr, indices, data, Z, out, a, z):
             w = data[p]
             for k in range(c):
                 acc[k] += w * Z[j, k]
+        g = labels[i]
         for k in range(c):
             out[i, k] = acc[k]
+            sums[g, k] += acc[k]
+    return sums
 
 
 def part_sums(X, labels, parts, a, z):

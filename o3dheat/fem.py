@@ -21,11 +21,12 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from . import _geometry_loops as loops
 from .errors import MeshError
-from .mesh import _edges, face_areas, unit_scale
+from .mesh import _edges, unit_scale
 
-__all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "operators", "mean_curvature", "gaussian_curvature",
-           "MASS_KINDS", "check_mass_kind"]
+__all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "operators", "adjacency_pattern", "mean_curvature",
+           "gaussian_curvature", "MASS_KINDS", "check_mass_kind"]
 
 #: mass kind -> what the matrix is: the one definition of the masses of ``L x = λ B x``, used by
 #: :func:`o3dheat.eigensolve`, :func:`o3dheat.diffuse`, the kernel variants
@@ -57,25 +58,62 @@ def check_mass_kind(kind):
 
 
 def _corner_geometry(V, F):
-    """Per-face double areas and the cotangent at each corner (m, 3)."""
+    """Per-face double areas and the cotangent at each corner (m, 3), and the squared lengths of
+    the edges opposite the corners (m, 3)."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     s = unit_scale(V)  # computed at unit scale (exact power of two), scaled back below
-    if s != 1.0:
-        V = V / s
-    p = [V[F[:, i]] for i in range(3)]
-    # edge opposite corner i: e_i = p[i+2] - p[i+1]
-    e = [p[2] - p[1], p[0] - p[2], p[1] - p[0]]
-    dbl = np.linalg.norm(np.cross(e[0], e[1]), axis=1)  # 2 |t|
+    dbl, cot, sq = loops.corner_geometry(V / s if s != 1.0 else V, F)
     if np.any(dbl <= 0):
         raise MeshError(f"{int(np.sum(dbl <= 0))} faces have zero area: repair the mesh first "
                         "(o3dheat.mesh.prepare drops them)")
-    # cot at corner i = <a, b> / |a x b|, a, b the edges leaving corner i = -e_{i+2}, e_{i+1}
-    cot = np.stack([-np.einsum("ij,ij->i", e[(i + 2) % 3], e[(i + 1) % 3]) / dbl for i in range(3)], axis=1)
-    sq = np.stack([np.einsum("ij,ij->i", e[i], e[i]) for i in range(3)], axis=1)
     if s != 1.0:  # cotangents are scale free; areas and squared lengths scale with s²
         dbl, sq = dbl * (s * s), sq * (s * s)
     return dbl, cot, sq
+
+
+def adjacency_pattern(F, n):
+    """The sparsity pattern of the stiffness (and of the consistent mass): the vertex adjacency of
+    the faces, diagonal included, as CSC ``(indptr, indices)`` (sorted; int32 below 2^31 entries).
+    Known before any value, for example to analyse a factorization meanwhile
+    (:func:`o3dheat.linalg.analyze`).
+
+    Parameters
+    ----------
+    F : (m, 3) int ndarray
+    n : int
+        Vertices.
+
+    Returns
+    -------
+    indptr : (n + 1,) int ndarray
+    indices : (nnz,) int ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from o3dheat.fem import adjacency_pattern
+    >>> indptr, indices = adjacency_pattern(np.array([[0, 1, 2]]), 3)
+    >>> indptr.tolist(), indices.tolist()
+    ([0, 3, 6, 9], [0, 1, 2, 0, 1, 2, 0, 1, 2])
+    """
+    indptr, indices = loops.pattern(np.asarray(F, dtype=np.int64), int(n))
+    if len(indices) < 2**31:  # scipy's own index type for such sizes (its products are faster on it)
+        indptr, indices = indptr.astype(np.int32), indices.astype(np.int32)
+    return indptr, indices
+
+
+def _assembled(V, F, consistent, pattern=None):
+    """(L, B or None, Voronoi areas, lumped mass) in one pass over the faces, L and B on one
+    sparsity pattern (CSC: symmetric, so the CSR arrays are the CSC ones)."""
+    F = np.asarray(F, dtype=np.int64)
+    n = len(V)
+    dbl, cot, sq = _corner_geometry(V, F)
+    indptr, indices = adjacency_pattern(F, n) if pattern is None else pattern
+    Ld, Bd, vor, lumped = loops.fill(F, cot, dbl, sq, indptr, indices, n, consistent)
+    L = sp.csc_matrix((Ld, indices, indptr), shape=(n, n))
+    B = sp.csc_matrix((Bd, indices.copy(), indptr.copy()), shape=(n, n)) if consistent else None
+    return L, B, vor, lumped
 
 
 def stiffness_matrix(V, F):
@@ -102,23 +140,7 @@ def stiffness_matrix(V, F):
     >>> bool(abs(L @ np.ones(len(V))).max() < 1e-12)
     True
     """
-    F = np.asarray(F, dtype=np.int64)
-    return _stiffness(len(V), F, _corner_geometry(V, F)[1])
-
-
-def _stiffness(n, F, cot):
-    # corner i weights the edge (i+1, i+2)
-    I = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
-    J = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
-    w = -0.5 * np.concatenate([cot[:, 0], cot[:, 1], cot[:, 2]])
-    diag = -np.bincount(I, weights=w, minlength=n) - np.bincount(J, weights=w, minlength=n)
-    d = np.arange(n)
-    return _assemble(n, np.concatenate([I, J, d]), np.concatenate([J, I, d]), np.concatenate([w, w, diag]))
-
-
-def _assemble(n, I, J, w):
-    """One sparse matrix from (row, col, value) triplets, duplicates summed: (n, n) CSC."""
-    return sp.csc_matrix(sp.coo_matrix((w, (I, J)), shape=(n, n)))
+    return _assembled(V, F, consistent=False)[0]
 
 
 def voronoi_areas(V, F):
@@ -145,22 +167,10 @@ def voronoi_areas(V, F):
     >>> bool(np.isclose(a.sum(), o3dheat.mesh.face_areas(V, F).sum()))
     True
     """
-    F = np.asarray(F, dtype=np.int64)
-    return _voronoi(len(V), F, *_corner_geometry(V, F))
+    return _assembled(V, F, consistent=False)[2]
 
 
-def _voronoi(n, F, dbl, cot, sq):
-    area = 0.5 * dbl
-    # Voronoi part at corner i: (|e_{i+1}|^2 cot_{i+1} + |e_{i+2}|^2 cot_{i+2}) / 8
-    vor = np.stack([(sq[:, (i + 1) % 3] * cot[:, (i + 1) % 3] + sq[:, (i + 2) % 3] * cot[:, (i + 2) % 3]) / 8
-                    for i in range(3)], axis=1)
-    obtuse = cot < 0
-    any_obtuse = obtuse.any(axis=1)
-    vor[any_obtuse] = np.where(obtuse[any_obtuse], area[any_obtuse, None] / 2, area[any_obtuse, None] / 4)
-    return np.bincount(F.reshape(-1), weights=vor.reshape(-1), minlength=n)
-
-
-def operators(V, F, mass="consistent"):
+def operators(V, F, mass="consistent", pattern=None):
     """The stiffness matrix, a mass matrix and the Voronoi areas in one pass over the faces.
 
     Parameters
@@ -170,6 +180,8 @@ def operators(V, F, mass="consistent"):
         Every face with a positive area.
     mass : str
         A key of :data:`MASS_KINDS`, as in :func:`mass_matrix`.
+    pattern : (indptr, indices), optional
+        :func:`adjacency_pattern` of ``F``, when already computed (``L`` then shares its arrays).
 
     Returns
     -------
@@ -187,14 +199,16 @@ def operators(V, F, mass="consistent"):
     (6.0, 6.0)
     """
     check_mass_kind(mass)
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    n = len(V)
-    geometry = _corner_geometry(V, F)
-    L = _stiffness(n, F, geometry[1])
-    areas = _voronoi(n, F, *geometry)
-    B = sp.diags(areas).tocsc() if mass == "voronoi" else mass_matrix(V, F, mass)
-    return L, B, areas
+    L, B, areas, lumped = _assembled(np.asarray(V, dtype=np.float64), F, mass == "consistent", pattern)
+    return L, _mass(mass, B, areas, lumped), areas
+
+
+def _mass(kind, B, areas, lumped):
+    if kind == "consistent":
+        return B
+    if kind == "identity":
+        return sp.identity(len(areas), format="csc")
+    return sp.diags(areas if kind == "voronoi" else lumped).tocsc()
 
 
 def mass_matrix(V, F, kind="consistent"):
@@ -223,21 +237,10 @@ def mass_matrix(V, F, kind="consistent"):
     6.0
     """
     check_mass_kind(kind)
-    n = len(V)
-    F = np.asarray(F, dtype=np.int64)
     if kind == "identity":
-        return sp.identity(n, format="csc")
-    if kind == "voronoi":
-        return sp.diags(voronoi_areas(V, F)).tocsc()
-    area = face_areas(np.asarray(V, dtype=np.float64), F)
-    if kind == "lumped":
-        return sp.diags(np.bincount(F.reshape(-1), weights=np.repeat(area / 3, 3), minlength=n)).tocsc()
-    I = np.concatenate([F[:, 0], F[:, 1], F[:, 2]])
-    J = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
-    off = np.tile(area / 12, 3)
-    diag = np.bincount(F.reshape(-1), weights=np.repeat(area / 6, 3), minlength=n)
-    d = np.arange(n)
-    return _assemble(n, np.concatenate([I, J, d]), np.concatenate([J, I, d]), np.concatenate([off, off, diag]))
+        return sp.identity(len(V), format="csc")
+    _, B, areas, lumped = _assembled(np.asarray(V, dtype=np.float64), F, consistent=kind == "consistent")
+    return _mass(kind, B, areas, lumped)
 
 
 def _vertex_normals(V, F):

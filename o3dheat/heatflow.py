@@ -9,11 +9,22 @@ Fig. 7). The full kernel ``K_t = exp(−(t/2) W⁻¹L)`` is the one of eq. (5)-(
 ``W`` is the variant's mass (:data:`o3dheat.kernel.VARIANTS`).
 
 How: shift-and-invert Lanczos (:mod:`o3dheat.krylov`) on a sparse Cholesky factor of
-``W + γL`` (:func:`o3dheat.linalg.factorize`), one factor per range of times of at most
-:data:`SHIFT_RANGE` (``γ`` from :func:`shift`); a factor is kept with the mesh's operators for
-later calls on the same geometry (the in-memory cache of :func:`o3dheat.spectrum.memoized`). Its
-cost is that of assembling the operators and one factorization, plus about 22 solves for the
-paper's ten scales or 85 for times spanning four decades (to 1e-8; independent of the mesh size).
+``W + γL`` (:func:`o3dheat.linalg.factorize`): one factor for times within a ratio of
+:data:`SPLIT_RANGE`, two or more beyond (:func:`shift_groups`; ``γ`` from :func:`shift`), the
+factors sharing one symbolic analysis (made on another core while the operators are assembled)
+and the next one made on another core during the current one's solves. Factors are kept with the
+mesh's operators for later calls on the same geometry (the in-memory cache of
+:func:`o3dheat.spectrum.memoized`). The cost: assembling the operators and one factorization,
+plus about 27 solves for the paper's ten scales, or about 70 over two factors for times spanning
+four decades (to 1e-8; independent of the mesh size, measured by ``scripts/bench_heat.py``).
+
+Why "spectral" stays the default of the filters, the studies and the figures
+(:data:`METHODS`): it is the paper's computation, in which ``k`` is a second smoothing parameter;
+one spectrum serves every field, the heat kernel signatures and the canonic basis of a mesh; and
+its results now carry a certificate of their distance to the full kernel
+(:meth:`o3dheat.HeatKernel.truncation_bound`). The exact form is one keyword away
+(``method="exact"``) and is the right one for small times or whenever a result must not depend
+on ``k`` (see the documentation's conventions page).
 
 Conventions are those of :class:`o3dheat.HeatKernel`: time ``exp(−λ t / 2)``,
 ``normalize="lambda2"`` divides the operator by its first non-zero eigenvalue (a few eigenpairs
@@ -35,15 +46,16 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from . import checks, fem
+from . import checks, fem, parallel
+from ._geometry_loops import abs_row_sums, components
 from .errors import ConvergenceError, MeshError
 from .kernel import NORMALIZATIONS, first_nonzero, mass_of, transfer_function
 from .krylov import propagate
-from .linalg import available_memory, check_memory, factorize
+from .linalg import analyze, available_memory, check_memory, factorize
 from .mesh import prepare
-from .spectrum import memoized, shared_eigensolve
+from .spectrum import memoized, memoized_has, shared_eigensolve
 
-__all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "SHIFT_RANGE", "METHODS"]
+__all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "shift_groups", "SPLIT_RANGE", "METHODS"]
 
 #: the two forms of ``Φ_t f`` (``method=`` of the ``heat_smooth`` and ``feature_approx`` filters,
 #: of :func:`o3dheat.study.robustness_study` and ``o3dheat figure``): "spectral", the paper's
@@ -52,12 +64,43 @@ __all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "SHIFT_RANGE", "METHO
 METHODS = ("spectral", "exact")
 _OPERATORS = object()  # HeatFlow(mesh=_OPERATORS): made by from_operators
 
-#: most ratio τ_max/τ_min of the times one shift (one factorization) serves; wider ranges are
-#: split, each part with its own factor
-SHIFT_RANGE = 1e5
+#: ratio τ_max/τ_min above which the times are split over two shifts (:func:`shift_groups`)
+SPLIT_RANGE = 300.0
 #: bytes per vertex allowed for the stored Krylov basis (at least 512 MiB, at most half the free
 #: memory); vectors beyond are regenerated (one more solve each) instead of stored
 BASIS_BYTES_PER_VERTEX = 2048
+
+
+def shift_groups(taus):
+    """The times (sorted, > 0) cut into groups, each served by one shift: a range wider than
+    :data:`SPLIT_RANGE` is cut at ``τ_min R^0.45`` (and each part again): measured on 200k-vertex
+    scans, four decades take about 97 solves with one shift and 69 cut in two (30 + 39; the
+    second factor is made on the other core during the first part's solves, its analysis
+    shared), three decades 88 and 61; below about 300 one shift is cheaper.
+
+    Returns
+    -------
+    list of (k,) int ndarray
+        Indices into ``taus``, in order.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from o3dheat.heatflow import shift_groups
+    >>> [g.tolist() for g in shift_groups(np.geomspace(1.0, 1e4, 9))]
+    [[0, 1, 2, 3], [4, 5, 6, 7, 8]]
+    >>> [g.tolist() for g in shift_groups(np.geomspace(1.0, 10.0, 5))]
+    [[0, 1, 2, 3, 4]]
+    """
+    taus = np.asarray(taus, dtype=np.float64)
+    idx = np.arange(len(taus))
+    if len(taus) < 2 or taus[-1] <= SPLIT_RANGE * taus[0]:
+        return [idx]
+    cut = taus[0] * (taus[-1] / taus[0]) ** 0.45
+    k = int(np.searchsorted(taus, cut))
+    if k == 0 or k == len(taus):
+        return [idx]
+    return shift_groups(taus[:k]) + [g + k for g in shift_groups(taus[k:])]
 
 
 def shift(tau_min, tau_max):
@@ -133,26 +176,57 @@ class FlowReport:
 
 class _Operators:
     """A mesh's operators for the flow: L, the mass W (None for the identity), the parts (the null
-    space of L), a bound of the largest eigenvalue, and timings. Shared through the cache."""
+    space of L), a bound of the largest eigenvalue, the symbolic analysis of the factors' pattern
+    (started in the background as soon as the pattern is known) and timings. Shared through the
+    cache."""
 
-    def __init__(self, L, W, mass, seconds=0.0):
+    def __init__(self, L, W, mass, seconds=0.0, analysis=None, parts=None, symmetric=False):
         t0 = time.perf_counter()
-        self.L = sp.csr_matrix(L, dtype=np.float64)
-        self.W = None if W is None else sp.csr_matrix(W, dtype=np.float64)
+        self.L, self.W = _csr(L, symmetric), None if W is None else _csr(W, symmetric)
         self.mass = mass
-        self.parts, self.labels = connected_components(self.L, directed=False)
+        self.parts, self.labels = connected_components(self.L, directed=False) if parts is None else parts
         self.d = np.ones(self.L.shape[0]) if self.W is None else np.asarray(self.W.sum(axis=1)).ravel()
         # Gershgorin on D⁻¹L, D the lumped mass (W itself when diagonal): the consistent mass is
         # >= D/4 element by element (each element's mass has eigenvalues |t|/12 x {1, 1, 4})
-        rows = np.asarray(abs(self.L).sum(axis=1)).ravel()
+        rows = abs_row_sums(self.L.indptr, self.L.data)
         self.lam_max = float(np.max(rows / np.maximum(self.d, 1e-300))) * (4.0 if mass == "consistent" else 1.0)
+        self._analysis = analysis
         self.seconds = seconds + time.perf_counter() - t0
 
     @classmethod
     def of_mesh(cls, prep, mass):
         t0 = time.perf_counter()
-        L, W, _ = fem.operators(prep.V, prep.F, mass)
-        return cls(L, None if mass == "identity" else W, mass, time.perf_counter() - t0)
+        n = len(prep.V)
+        pattern = fem.adjacency_pattern(prep.F, n)
+        # the factors' ordering needs the pattern only: analysed on another core meanwhile
+        analysis = parallel.background(analyze, sp.csc_matrix((np.ones(len(pattern[1])), pattern[1], pattern[0]),
+                                                              shape=(n, n)))
+        L, W, _ = fem.operators(prep.V, prep.F, mass, pattern=pattern)
+        return cls(L, None if mass == "identity" else W, mass, time.perf_counter() - t0, analysis,
+                   components(prep.F, n), symmetric=True)
+
+    def shifted(self, gamma):
+        """``W + γL`` (CSC: symmetric), on L's pattern when W's is the same or diagonal."""
+        L, W = self.L, self.W
+        n = L.shape[0]
+        if W is not None and W.nnz == L.nnz and np.array_equal(W.indptr, L.indptr) and np.array_equal(W.indices, L.indices):
+            data = W.data + gamma * L.data
+        elif W is None or W.nnz == sp.csr_matrix(sp.diags(W.diagonal())).nnz:
+            rows = np.repeat(np.arange(n), np.diff(L.indptr))
+            diagonal = np.flatnonzero(L.indices == rows)
+            if len(diagonal) != n:  # a vertex without a diagonal entry in L: the general sum
+                return sp.csc_matrix((sp.identity(n) if W is None else W) + gamma * L)
+            data = gamma * L.data
+            data[diagonal] += 1.0 if W is None else W.diagonal()
+        else:
+            return sp.csc_matrix(W + gamma * L)
+        return sp.csc_matrix((data, L.indices, L.indptr), shape=(n, n))
+
+    @property
+    def analysis(self):
+        """The symbolic analysis of the factors' pattern (None: each factorization analyses)."""
+        a = self._analysis
+        return a.result() if hasattr(a, "result") else a
 
     @property
     def nbytes(self):
@@ -161,6 +235,14 @@ class _Operators:
             if M is not None:
                 total += M.data.nbytes + M.indices.nbytes + M.indptr.nbytes
         return total
+
+
+def _csr(M, symmetric=False):
+    """M as a float64 CSR matrix; a CSC one known to be symmetric (the operators of
+    :mod:`o3dheat.fem`) reuses its arrays (they are those of its transpose)."""
+    if symmetric and sp.isspmatrix_csc(M) and M.dtype == np.float64:
+        return sp.csr_matrix((M.data, M.indices, M.indptr), shape=M.shape)
+    return sp.csr_matrix(M, dtype=np.float64)
 
 
 def _geometry_key(prep, mass):
@@ -176,8 +258,8 @@ class _Shifted:
 
     def __init__(self, ops, gamma, backend):
         t0 = time.perf_counter()
-        W = sp.identity(ops.L.shape[0], format="csr") if ops.W is None else ops.W
-        self.factor = factorize(sp.csc_matrix(W + gamma * ops.L), backend=backend)
+        analysis = ops.analysis if backend in ("auto", "cholmod") else None
+        self.factor = factorize(ops.shifted(gamma), backend=backend, analysis=analysis)
         self.seconds = time.perf_counter() - t0
 
     @property
@@ -475,21 +557,19 @@ class HeatFlow:
         order = order[np.argsort(taus[order], kind="stable")]
         shifts, solves, t_fac, t_sol = [], 0, 0.0, 0.0
         backend = ""
-        groups = []
-        for i in order:  # consecutive times within SHIFT_RANGE of the group's first share a shift
-            if groups and taus[i] <= SHIFT_RANGE * taus[groups[-1][0]]:
-                groups[-1].append(i)
-            else:
-                groups.append([i])
+        groups = [np.array(g) for g in shift_groups(taus[order])]
+        groups = [order[g] for g in groups]
+        gammas = [shift(scale * taus[g].min(), scale * taus[g].max()) for g in groups]
         null = (ops.labels, ops.d)
-        for idx in groups:
-            idx = np.array(idx)
+        pending = None  # the next group's factor, made on another core during this group's solves
+        for gi, (idx, gamma) in enumerate(zip(groups, gammas)):
             tg = taus[idx]
-            gamma = shift(scale * tg.min(), scale * tg.max())
             t0 = time.perf_counter()
-            shifted = self._cached(("heatflow-factor", self._key, gamma, self.backend),
-                                   lambda g=gamma: _Shifted(ops, g, self.backend))
+            shifted = self._factor(gamma, pending)
             t1 = time.perf_counter()
+            pending = None
+            if gi + 1 < len(groups) and not self._has_factor(gammas[gi + 1]):
+                pending = parallel.background(_Shifted, ops, gammas[gi + 1], self.backend)
             backend = shifted.factor.backend
             Ug, info = propagate(shifted.factor.solve, ops.W, F, tg, gamma, null=null, tol=tol,
                                  max_steps=max_steps, rates=rates, basis_bytes=self._basis_bytes(),
@@ -497,6 +577,8 @@ class HeatFlow:
             t_sol += time.perf_counter() - t1
             t_fac += t1 - t0
             if not info.converged.all():
+                if pending is not None:
+                    pending.result()  # no factorization left running behind an error
                 bad = int(np.flatnonzero(~info.converged)[0])
                 worst = float(info.estimate[bad].max())
                 raise ConvergenceError(
@@ -513,6 +595,19 @@ class HeatFlow:
         self._assembled = 0.0  # later calls reuse the operators
         report = FlowReport(tol, times.copy(), estimate, steps, shifts, solves, timings, backend)
         return U, report
+
+    def _factor_key(self, gamma):
+        return ("heatflow-factor", self._key, gamma, self.backend)
+
+    def _has_factor(self, gamma):
+        key = self._factor_key(gamma)
+        return key in self._local or (self.cache and memoized_has(key))
+
+    def _factor(self, gamma, pending=None):
+        """The factor of ``W + γL``: cached, or made now (or by ``pending``, a background job)."""
+        ops = self._ops
+        return self._cached(self._factor_key(gamma),
+                            (lambda: pending.result()) if pending is not None else (lambda: _Shifted(ops, gamma, self.backend)))
 
     def error(self, f, t, tol=None):
         """``ε∞ = ‖f − Φ_t f‖∞ / ‖f‖∞`` of the full kernel (0 when f = 0), like

@@ -113,12 +113,17 @@ class _Null:
         self.parts = int(self.labels.max()) + 1 if n else 0
         self.mass = np.bincount(self.labels, weights=self.d, minlength=self.parts)
 
-    def project_out(self, X, WX):
-        """In place: X and WX = W X lose their W-orthogonal projection on each part's constants;
-        returns ``Σ X ∘ WX`` afterwards, by column."""
+    def project_out(self, X, WX, sums=None):
+        """In place: X and WX = W X lose their W-orthogonal projection on each part's constants
+        (``sums``: WX's sums over each part, when known); returns ``Σ X ∘ WX`` afterwards, by column."""
         n = len(X)
-        mu = loops.rows(loops.part_sums, n, WX, self.labels, self.parts) / self.mass[:, None]
-        return loops.rows(loops.project, n, X, WX, self.d, self.labels, mu)
+        if sums is None:
+            sums = loops.rows(loops.part_sums, n, WX, self.labels, self.parts)
+        return loops.rows(loops.project, n, X, WX, self.d, self.labels, sums / self.mass[:, None])
+
+    def times(self, W, X, WX):
+        """``WX = W X`` (W in CSR), and WX's sums over each part."""
+        return loops.rows(loops.spmm, len(X), W.indptr, W.indices, W.data, X, WX, self.labels, self.parts)
 
 
 class _State:
@@ -150,8 +155,7 @@ def _step(state, solve, W, null):
     solve(state.WV, state.Z)
     al = loops.rows(loops.update, n, state.Z, state.Vp, state.WV, state.bp)
     loops.rows(loops.subtract, n, state.Z, state.V, al)
-    loops.rows(loops.spmm, n, W.indptr, W.indices, W.data, state.Z, state.WZ)
-    b2 = null.project_out(state.Z, state.WZ)
+    b2 = null.project_out(state.Z, state.WZ, null.times(W, state.Z, state.WZ))
     return al, np.sqrt(np.maximum(b2, 0.0))
 
 
@@ -288,9 +292,9 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
     solve = _solver(solve)
     F1 = np.ascontiguousarray(F, dtype=np.float64).copy()
     WF1 = np.empty_like(F1)
-    loops.rows(loops.spmm, n, W.indptr, W.indices, W.data, F1, WF1)
+    sums = null.times(W, F1, WF1)
     scale = np.sqrt(np.maximum(np.einsum("ij,ij->j", F1, WF1), 0.0))
-    b0 = np.sqrt(np.maximum(null.project_out(F1, WF1), 0.0))
+    b0 = np.sqrt(np.maximum(null.project_out(F1, WF1, sums), 0.0))
     with np.errstate(over="ignore"):
         decay = np.exp(-taus * float(null_rate))
     if not np.all(np.isfinite(decay)):

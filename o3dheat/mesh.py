@@ -206,10 +206,11 @@ def face_areas(V, F):
     >>> m.face_areas(np.eye(3), np.array([[0, 1, 2]])).round(4)
     array([0.866])
     """
+    from ._geometry_loops import double_areas
+
     s = unit_scale(V)
     V = V / s if s != 1.0 else V
-    v0, v1, v2 = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    area = 0.5 * np.linalg.norm(np.cross(v1 - v0, v2 - v0), axis=1)
+    area = 0.5 * double_areas(V, F)
     return area * (s * s) if s != 1.0 else area
 
 

@@ -25,7 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from .errors import SolverError
 
-__all__ = ["CHUNK", "blas_one_thread", "get_threads", "row_parts", "run", "threads"]
+__all__ = ["CHUNK", "background", "blas_one_thread", "get_threads", "row_parts", "run", "threads"]
 
 #: most rows per part of a row-parallel loop (:func:`row_parts`; the parts depend on the number of
 #: rows only, so sums do not depend on the threads)
@@ -198,6 +198,30 @@ def run(fn, items, threads=None):
     if error is not None:
         raise error
     return out
+
+
+def background(fn, *args):
+    """``fn(*args)`` started on one of the pool's threads, while the caller goes on: a
+    ``concurrent.futures.Future`` (``.result()`` waits, and re-raises what ``fn`` raised). For
+    work that releases the GIL (a ctypes call, a compiled loop) and does not need the caller's
+    result. With one thread (:func:`get_threads`) it runs at once, in the calling thread.
+
+    Examples
+    --------
+    >>> from o3dheat.parallel import background
+    >>> background(sum, [1, 2, 3]).result()
+    6
+    """
+    from concurrent.futures import Future
+
+    if get_threads() > 1 and not threading.current_thread().name.startswith(_PREFIX):
+        return _pool().submit(fn, *args)
+    done = Future()
+    try:
+        done.set_result(fn(*args))
+    except Exception as e:  # noqa: BLE001 - handed over to the caller's result()
+        done.set_exception(e)
+    return done
 
 
 @contextlib.contextmanager

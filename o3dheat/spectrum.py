@@ -37,7 +37,7 @@ from .linalg import OutOfMemory, available_memory, check_memory, factorize
 from .mesh import prepare
 
 __all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "peak_memory", "default_cache_dir", "shared_eigensolve", "set_cache",
-           "memoized", "cache_max_bytes", "inverse_mass_bound"]
+           "memoized", "memoized_has", "cache_max_bytes", "inverse_mass_bound"]
 
 log = logging.getLogger("o3dheat")
 
@@ -292,6 +292,18 @@ def memoized(key, compute):
     while len(_MEMORY) > 1 and (len(_MEMORY) > _MEMORY_MAX or sum(b for _, b in _MEMORY.values()) > budget):
         _MEMORY.popitem(last=False)
     return value
+
+
+def memoized_has(key):
+    """Whether :func:`memoized` holds a result for ``key`` now.
+
+    Examples
+    --------
+    >>> import o3dheat.spectrum as s
+    >>> s.memoized_has(("example", "absent"))
+    False
+    """
+    return key in _MEMORY
 
 
 def shared_eigensolve(V, F, k=100, mass="consistent", cache=None):

@@ -232,14 +232,14 @@ def test_memory_is_checked_before_factorizing_and_out_of_memory_never_falls_back
     tried = []
     monkeypatch.setattr(la, "_cholespy", lambda A: tried.append("cholespy"))
 
-    def oom(A, mode):
+    def oom(A, mode, analysis=None):
         raise la.OutOfMemory("CHOLMOD ran out of memory")
 
     monkeypatch.setattr(la, "_cholmod", oom)
     with pytest.raises(la.OutOfMemory):
         la.factorize(A)
     assert tried == []  # cholespy would need as much memory, and crashes when it does not get it
-    monkeypatch.setattr(la, "_cholmod", lambda A, mode: (_ for _ in ()).throw(MemoryError()))
+    monkeypatch.setattr(la, "_cholmod", lambda A, mode, analysis=None: (_ for _ in ()).throw(MemoryError()))
     with pytest.raises(la.OutOfMemory, match="ran out of memory"):
         la.factorize(A)
     assert tried == []

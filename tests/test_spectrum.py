@@ -107,7 +107,7 @@ def test_cholmod_is_installed_by_setup():
 def test_fallback_warns(monkeypatch, irregular_mesh, caplog):
     import o3dheat.linalg as la
 
-    def broken(A, mode):
+    def broken(A, mode, analysis=None):
         raise ImportError("no CHOLMOD here")
 
     monkeypatch.setattr(la, "_cholmod", broken)
