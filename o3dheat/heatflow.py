@@ -94,9 +94,12 @@ def shift_groups(taus):
     """
     taus = np.asarray(taus, dtype=np.float64)
     idx = np.arange(len(taus))
-    if len(taus) < 2 or taus[-1] <= SPLIT_RANGE * taus[0]:
+    if len(taus) == 0:
+        return []
+    span = np.log(taus[-1]) - np.log(taus[0]) if len(taus) > 1 else 0.0  # (logs: the ratio may overflow)
+    if span <= np.log(SPLIT_RANGE):
         return [idx]
-    cut = taus[0] * (taus[-1] / taus[0]) ** 0.45
+    cut = np.exp(np.log(taus[0]) + 0.45 * span)
     k = int(np.searchsorted(taus, cut))
     if k == 0 or k == len(taus):
         return [idx]
@@ -120,9 +123,9 @@ def shift(tau_min, tau_max):
     >>> round(shift(1.0, 10.0), 3), round(shift(1.0, 1e4), 3)
     (0.297, 6.727)
     """
-    ratio = max(float(tau_max) / float(tau_min), 1.0)
-    g = float(tau_min) * min(max(0.3 * (ratio / 10.0) ** 0.45, 0.1), 8.0)
-    return float(2.0 ** (np.round(4.0 * np.log2(g)) / 4.0))
+    span = max(np.log(float(tau_max)) - np.log(float(tau_min)), 0.0)  # log R (R itself may overflow)
+    factor = min(max(0.3 * np.exp(0.45 * (span - np.log(10.0))), 0.1), 8.0)
+    return float(2.0 ** (np.round(4.0 * (np.log2(float(tau_min)) + np.log2(factor))) / 4.0))
 
 
 @dataclass
@@ -548,32 +551,38 @@ class HeatFlow:
         r, c = F.shape
         T = len(times)
         taus, rates, null_rate, scale = self._rates(times)
-        U = np.empty((r, c, T))
         estimate = np.zeros((c, T))
         steps = np.zeros(c, dtype=np.int64)
         zero = np.flatnonzero(taus == 0)
-        U[:, :, zero] = F[:, :, None]
         order = np.flatnonzero(taus > 0)
         order = order[np.argsort(taus[order], kind="stable")]
+        # the result in the order of increasing times, each shift's times a slice of it: written
+        # in place (no copy unless the times come unsorted or with zeros)
+        in_order = len(zero) == 0 and np.array_equal(order, np.arange(T))
+        U = np.empty((r, c, len(order)))
         shifts, solves, t_fac, t_sol = [], 0, 0.0, 0.0
         backend = ""
-        groups = [np.array(g) for g in shift_groups(taus[order])]
-        groups = [order[g] for g in groups]
-        gammas = [shift(scale * taus[g].min(), scale * taus[g].max()) for g in groups]
+        groups = shift_groups(taus[order])
+        gammas = [shift(scale * taus[order[g]].min(), scale * taus[order[g]].max()) for g in groups]
         null = (ops.labels, ops.d)
         pending = None  # the next group's factor, made on another core during this group's solves
-        for gi, (idx, gamma) in enumerate(zip(groups, gammas)):
+        for gi, (g, gamma) in enumerate(zip(groups, gammas)):
+            idx = order[g]
             tg = taus[idx]
             t0 = time.perf_counter()
             shifted = self._factor(gamma, pending)
             t1 = time.perf_counter()
             pending = None
-            if gi + 1 < len(groups) and not self._has_factor(gammas[gi + 1]):
+            if gi + 1 < len(groups) and not self._has_factor(gammas[gi + 1]) and self._room_for_another(shifted):
                 pending = parallel.background(_Shifted, ops, gammas[gi + 1], self.backend)
             backend = shifted.factor.backend
-            Ug, info = propagate(shifted.factor.solve, ops.W, F, tg, gamma, null=null, tol=tol,
-                                 max_steps=max_steps, rates=rates, basis_bytes=self._basis_bytes(),
-                                 null_rate=null_rate)
+            try:
+                _, info = propagate(shifted.factor.solve, ops.W, F, tg, gamma, null=null, tol=tol,
+                                    max_steps=max_steps, rates=rates, basis_bytes=self._basis_bytes(),
+                                    null_rate=null_rate, out=U[:, :, g[0]:g[-1] + 1],
+                                    release=shifted.factor.release)
+            finally:
+                shifted.factor.release()  # its solve workspaces (n x columns each): memory back now
             t_sol += time.perf_counter() - t1
             t_fac += t1 - t0
             if not info.converged.all():
@@ -586,15 +595,25 @@ class HeatFlow:
                     f"relative error {worst:.2g} at times {times[idx].min():.4g}..{times[idx].max():.4g})"
                     + ("; the transfer function may make the kernel too rough to approximate"
                        if self._phi is not None else "; raise max_steps, or split the times"))
-            U[:, :, idx] = Ug
             estimate[:, idx] = info.estimate
             steps += info.steps
             solves += info.solves
             shifts.append((gamma, idx))
+        if not in_order:
+            ordered, U = U, np.empty((r, c, T))
+            U[:, :, order] = ordered
+            U[:, :, zero] = F[:, :, None]
+            del ordered
         timings = {"assemble": self._assembled, "factorize": t_fac, "solve": t_sol}
         self._assembled = 0.0  # later calls reuse the operators
         report = FlowReport(tol, times.copy(), estimate, steps, shifts, solves, timings, backend)
         return U, report
+
+    def _room_for_another(self, shifted):
+        """Whether a second factorization fits beside the current solves (its transient memory,
+        about three times a factor, and a basis): else the next factor is made after them."""
+        free = available_memory()
+        return free is None or free > 3 * shifted.nbytes + self._basis_bytes()
 
     def _factor_key(self, gamma):
         return ("heatflow-factor", self._key, gamma, self.backend)

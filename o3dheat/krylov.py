@@ -167,6 +167,26 @@ def _advance(state, be):
     state.Vp, state.V, state.bp = state.V, V, be
 
 
+def _result(f0, decay, blocks, coefficients, out):
+    """(n, c, T), into ``out`` when given: the null-space part ``f0 ⊗ decay`` plus each column's
+    stored vectors times its coefficients, written once per column (summed in an (n, T) buffer)."""
+    n, c = f0.shape
+    T = len(decay)
+    U = np.empty((n, c, T)) if out is None else out
+    acc, tmp = np.empty((n, T)), np.empty((n, T))
+    for j in range(c):
+        np.multiply.outer(f0[:, j], decay, out=acc)
+        Y = coefficients.get(j)
+        for bcols, first, count, block in blocks:
+            k = np.flatnonzero(bcols == j)
+            z = 0 if Y is None or not len(k) else min(count, len(Y) - first)
+            if z > 0:
+                np.matmul(block[k[0], :z].T, Y[first:first + z], out=tmp)
+                acc += tmp
+        U[:, j, :] = acc
+    return U
+
+
 def _solver(solve):
     """``solve(B, out)`` from a solver with or without an ``out`` keyword."""
     try:
@@ -223,7 +243,7 @@ def _difference(Y, Yold):
 
 
 def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, rates=None,
-              null_rate=0.0, basis_bytes=None, min_steps=MIN_STEPS):
+              null_rate=0.0, basis_bytes=None, min_steps=MIN_STEPS, out=None, release=None):
     """``exp(−τ W⁻¹L) F`` at every τ, from a solver of ``W + γL`` (see the module notes).
 
     Parameters
@@ -254,10 +274,16 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
         Memory for the stored basis (default: unbounded); vectors beyond it are regenerated.
     min_steps : int
         Fewest steps before the estimate may stop a column.
+    out : (n, c, T) float64 ndarray, optional
+        Where to write the result (a view of a larger array is fine).
+    release : callable, optional
+        Called once the steps are done, before the result's memory is taken (for example
+        :meth:`o3dheat.linalg.Factor.release`: the solver's workspaces).
 
     Returns
     -------
     U : (n, c, T) float64 ndarray
+        ``out`` when given.
     info : Propagation
 
     Examples
@@ -286,6 +312,8 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
     if not (0 < tol < 1):
         raise MeshError(f"tol must lie in (0, 1), got {tol}")
     T = len(taus)
+    if out is not None and (out.shape != (n, c, T) or out.dtype != np.float64):
+        raise MeshError(f"out must be a float64 array of shape {(n, c, T)}, got {out.shape} {out.dtype}")
     W = sp.identity(n, format="csr") if W is None else sp.csr_matrix(W)
     W.sort_indices()
     null = _Null((np.zeros(n, np.int64), np.asarray(W.sum(axis=1)).ravel()) if null is None else null, n)
@@ -299,18 +327,21 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
         decay = np.exp(-taus * float(null_rate))
     if not np.all(np.isfinite(decay)):
         raise SolverError("exp(-τ φ(0)) overflows: the transfer function is too negative at 0 for these times")
-    U = np.empty((n, c, T))
-    for j in range(c):  # the null-space part, exact
-        np.multiply.outer(F[:, j] - F1[:, j], decay, out=U[:, j, :])
+    f0 = F - F1  # the null-space part, exact: exp(-τ φ(0)) f0 at every time
     # a column whose non-constant part is at rounding level of the field is constant per part
     live = b0 > 1e-14 * np.maximum(scale, 1e-300)
     steps = np.zeros(c, dtype=np.int64)
     estimate = np.zeros((c, T))
     converged = np.ones(c, dtype=bool)
     if not live.any():
-        return U, Propagation(steps, estimate, converged)
+        return _result(f0, decay, [], {}, out), Propagation(steps, estimate, converged)
     cols = np.flatnonzero(live)
-    state = _State(cols, F1[:, cols] / b0[cols], WF1[:, cols] / b0[cols])
+    if live.all():  # in place: no copies of (n, c) arrays (fresh memory is slow to touch)
+        F1 /= b0
+        WF1 /= b0
+        state = _State(cols, F1, WF1)
+    else:
+        state = _State(cols, F1[:, cols] / b0[cols], WF1[:, cols] / b0[cols])
     del F1, WF1
     alphas = {j: [] for j in cols}
     betas = {j: [] for j in cols}
@@ -374,18 +405,13 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
         if len(state.cols):
             _advance(state, be)
             store(state, step)
-    # the result: stored vectors by blocks, then the rest regenerated
-    tmp = np.empty((n, T))
-    for bcols, first, count, block in blocks:
-        for k, j in enumerate(bcols):
-            Y = done_coef[j]
-            z = min(count, len(Y) - first)
-            if z > 0:
-                np.matmul(block[k, :z].T, Y[first:first + z], out=tmp)
-                U[:, j, :] += tmp
+    del state  # its buffers, before the result's memory is taken
+    if release is not None:
+        release()
+    U = _result(f0, decay, blocks, done_coef, out)
     blocks.clear()
     replayed = 0
-    if saved is not None:
+    if saved is not None:  # the vectors not stored: regenerated from the last stored state
         start, state = saved
         for i in range(start, len(schedule) + 1):
             for k, j in enumerate(state.cols):  # vector i of column j

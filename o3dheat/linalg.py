@@ -348,6 +348,21 @@ class Factor:
 
     __call__ = solve
 
+    def release(self):
+        """Give back the memory of the last solve's workspaces (they are made again by the next
+        solve): CHOLMOD keeps about three ``(n, columns)`` arrays per thread between solves.
+
+        Examples
+        --------
+        >>> import numpy as np, scipy.sparse as sp, o3dheat.linalg as la
+        >>> f = la.factorize(sp.diags([2.0, 4.0]).tocsc())
+        >>> f.release(); f.solve([2.0, 4.0]).tolist()
+        [1.0, 1.0]
+        """
+        release = getattr(self._solve, "release", None)
+        if release is not None:
+            release()
+
 
 # ---- CHOLMOD through ctypes (the GIL is released during each call) --------------------------
 
@@ -555,6 +570,15 @@ class _CholmodFactor:
             raise OutOfMemory(f"CHOLMOD ran out of memory pruning the factor of the {n} x {n} matrix")
         self.nbytes = 12 * lnz + 16 * n if counts else 0
 
+    def release(self):
+        """Free the solve workspaces of every context and the column-major buffer."""
+        with self._lock:
+            for c, X, Y, E in self._contexts:
+                for h in (X, Y, E):
+                    if h:
+                        self._lib.cholmod_free_dense(ctypes.byref(h), c)
+            self._fbuf = None
+
     def _solve_columns(self, j, b, out):
         c, X, Y, E = self._contexts[j]
         b = np.asfortranarray(b, dtype=np.float64)
@@ -721,6 +745,7 @@ def _fallback_solve(factor, A, mode):
 
     solve.into = lambda b, out: solve(b, out)
     solve.nbytes = getattr(factor, "nbytes", 0)
+    solve.release = factor.release
     return solve
 
 

@@ -247,3 +247,71 @@ def test_an_unconverged_answer_is_never_returned():
     V, F = icosphere(3)
     with pytest.raises(ConvergenceError, match="did not reach tol=1e-08 in 5 steps"):
         HeatFlow((V, F)).apply(V[:, 0] + np.sin(9 * V[:, 2]), [1e-4, 1.0], max_steps=5)
+
+
+# ---------------------------------------------------------------- hypothesis and real files
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@st.composite
+def small_meshes(draw):
+    """Jittered icospheres with some faces removed (boundaries, sometimes several parts)."""
+    V, F = icosphere(draw(st.integers(1, 2)))
+    rng = np.random.default_rng(draw(st.integers(0, 2**31)))
+    V = V * rng.uniform(0.3, 3.0, 3) + 0.05 * rng.standard_normal(V.shape)
+    drop = draw(st.floats(0.0, 0.3))
+    F = F[rng.random(len(F)) >= drop]
+    if len(F) < 4:
+        F = icosphere(draw(st.integers(1, 2)))[1][:8]
+    return V, F
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(mesh=small_meshes(), variant=st.sampled_from(list(VARIANTS)),
+       times=st.lists(st.floats(0.0, 50.0, allow_nan=False), min_size=1, max_size=6),
+       seed=st.integers(0, 1000))
+def test_hypothesis_against_dense(mesh, variant, times, seed):
+    V, F = mesh
+    prep = o3dheat.mesh.prepare((V, F))
+    Vp, Fp = prep.V, prep.F
+    L, W, lam, X = dense(Vp, Fp, variant)
+    scale = 1.0 / max(lam.max(), 1e-12)  # times from 0 to 50 / λ_max ... 50 / λ_max * 1e4
+    t = np.array(times) * scale * np.geomspace(1.0, 1e4, len(times))
+    f = np.random.default_rng(seed).standard_normal(len(Vp))
+    U, rep = heat_flow((Vp, Fp), f, t, variant=variant, return_report=True)
+    R = reference(W, lam, X, f, t)
+    N = X[:, lam <= 1e-8 * lam.max()]
+    f1 = f - N @ (N.T @ (W @ f))
+    n1 = np.sqrt(f1 @ W @ f1)
+    err = wnorm(W, U - R) / max(n1, 1e-300)
+    assert err.max() <= TOL or n1 < 1e-12 * np.sqrt(f @ W @ f)
+    assert rep.estimate.max() <= TOL
+    mass = np.ones(len(Vp)) @ (W @ U)
+    assert np.allclose(mass, np.ones(len(Vp)) @ (W @ f), rtol=1e-9, atol=1e-12)
+
+
+def _sample(name):
+    import importlib.resources
+
+    path = importlib.resources.files("pymeshlab") / "tests" / "sample_meshes" / name
+    if not path.is_file():
+        pytest.skip(f"pymeshlab's {name} is not installed")
+    return o3dheat.io.read_mesh(str(path))
+
+
+@pytest.mark.parametrize("name", ["airplane.obj", "bone.ply", "cube.obj", "cow.obj"])
+def test_real_files_agree_with_the_certified_spectral_kernel(name):
+    mesh = _sample(name)
+    K = o3dheat.heat_kernel(mesh, k=min(60, len(o3dheat.mesh.prepare(mesh).V)))
+    V = o3dheat.as_arrays(mesh)[0]
+    f = V[:, 1] + np.sin(4 * V[:, 0] / np.ptp(V[:, 0]))
+    lk = K.spectrum.eigenvalues[-1]
+    t = np.array([40.0, 80.0, 200.0]) / lk  # late enough for the truncation to be certified
+    F, bound = K.smooth(f, t, return_bound=True)
+    E, rep = heat_flow(mesh, f, t, return_report=True)
+    W = K.spectrum.mass
+    nf = np.sqrt(f @ (W @ f))
+    err = np.sqrt(np.einsum("it,it->t", E - F, W @ (E - F))) / nf
+    assert np.all(err <= bound + 2 * TOL), (err, bound)
+    assert rep.estimate.max() <= TOL
