@@ -12,7 +12,7 @@ import numpy as np
 
 from ._jit import compiled
 
-__all__ = ["double_areas", "corner_geometry", "pattern", "fill", "components", "abs_row_sums"]
+__all__ = ["double_areas", "corner_geometry", "pattern", "fill", "components", "abs_row_sums", "first_rows"]
 
 
 def _double_areas(V, F):
@@ -267,3 +267,52 @@ def abs_row_sums(indptr, data):
     [3.0, 4.0]
     """
     return compiled(_abs_row_sums)(indptr, np.ascontiguousarray(data, dtype=np.float64))
+
+
+def _first_rows(H, E, bits):
+    m = H.shape[0]
+    size = 1
+    while size < 2 * m:
+        size *= 2
+    slots = size - 1
+    keep = np.uint64(slots) if bits >= 64 else np.uint64((1 << bits) - 1)
+    table = np.full(size, -1, np.int64)
+    first = np.empty(m, np.int64)
+    c1, c2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
+    s30, s27, s31 = np.uint64(30), np.uint64(27), np.uint64(31)
+    for i in range(m):
+        h = np.uint64(0)
+        for c in range(3):  # splitmix64's finalizer, word by word: every input bit reaches every output bit
+            x = h ^ H[i, c]
+            x = (x ^ (x >> s30)) * c1
+            x = (x ^ (x >> s27)) * c2
+            h = x ^ (x >> s31)
+        p = np.int64(h & keep & np.uint64(slots))
+        while True:  # open addressing; rows are compared exactly (NaN equals nothing)
+            j = table[p]
+            if j < 0:
+                table[p] = i
+                first[i] = i
+                break
+            if E[j, 0] == E[i, 0] and E[j, 1] == E[i, 1] and E[j, 2] == E[i, 2]:
+                first[i] = j
+                break
+            p = (p + 1) & slots
+    return first
+
+
+def first_rows(H, E, bits=64):
+    """For each row of ``E`` (m, 3), the smallest index of a row equal to it (itself when none
+    is), in one pass: a hash table on the words ``H`` (m, 3) uint64, which must be equal for
+    equal rows, with exact comparisons of ``E``. ``bits`` keeps that many bits of the hash (fewer:
+    more collisions, for tests).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from o3dheat._geometry_loops import first_rows
+    >>> E = np.array([[1, 2, 3], [4, 5, 6], [1, 2, 3], [4, 5, 6]])
+    >>> first_rows(E.view(np.uint64), E).tolist(), first_rows(E.view(np.uint64), E, bits=1).tolist()
+    ([0, 1, 0, 1], [0, 1, 0, 1])
+    """
+    return compiled(_first_rows)(np.ascontiguousarray(H, dtype=np.uint64), np.ascontiguousarray(E), int(bits))

@@ -383,36 +383,25 @@ def test_check_mesh_validates_shapes_exactly_as_eigensolve(V, F, message):
             fn((V, F))
 
 
-def test_first_copies_on_grid_coordinates_hash_without_collisions_and_match_brute_force(monkeypatch):
+def test_first_copies_match_brute_force_even_when_the_hash_collides_everywhere():
     import o3dheat.mesh as m
 
-    g = np.linspace(-1, 1, 41)  # grid-like coordinates: many zero low bits (the old hash collided)
+    g = np.linspace(-1, 1, 41)  # grid-like coordinates: many zero low bits (a weak hash collides)
     P = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
-    calls = []
-    real_unique = np.unique
-    def unique(*a, **k):  # the exact comparison of rows (np.isin's own uses have no axis)
-        if k.get("axis") == 0:
-            calls.append(len(a[0]))
-        return real_unique(*a, **k)
-
-    monkeypatch.setattr(m.np, "unique", unique)
     np.testing.assert_array_equal(m._first_copies(P), np.arange(len(P)))
-    assert calls == []  # no duplicate: no exact comparison at all
     rng = np.random.default_rng(3)
     Q = np.concatenate([P[:500], P[rng.integers(0, 500, 40)], -0.0 * P[:1]])  # 40 copies, and -0.0
     rng.shuffle(Q)
-    got = m._first_copies(Q)
-    assert calls == []  # copies are confirmed against their hash run's first row, not by np.unique
     first = {}
     expected = np.array([first.setdefault(tuple(q + 0.0), i) for i, q in enumerate(Q)])
-    np.testing.assert_array_equal(got, expected)
-    # a hash that collides everywhere (the worst case): the colliding runs are compared exactly
-    monkeypatch.setattr(m, "_mix64", lambda x: x & np.uint64(3))
     np.testing.assert_array_equal(m._first_copies(Q), expected)
-    assert calls and max(calls) <= len(Q)
+    for bits in (0, 2):  # a hash of 0 or 2 bits: every row collides, each is compared exactly
+        np.testing.assert_array_equal(m._first_copies(Q, bits=bits), expected)
     R = np.concatenate([Q[:5], [[np.nan, 0.0, 0.0]], Q[:2], [[np.nan, 0.0, 0.0]]])  # NaN equals nothing
-    monkeypatch.setattr(m, "_mix64", lambda x: x)
     first = {}
     expected = np.array([i if np.isnan(r).any() else first.setdefault(tuple(r + 0.0), i) for i, r in enumerate(R)])
-    got = m._first_copies(R)
-    np.testing.assert_array_equal(got[~np.isnan(R).any(1)], expected[~np.isnan(R).any(1)])
+    for bits in (64, 0):
+        np.testing.assert_array_equal(m._first_copies(R, bits=bits), expected)
+    # faces: the first of each set with the same vertices, in any order
+    F = np.array([[0, 1, 2], [2, 1, 0], [1, 2, 3], [3, 1, 2], [0, 1, 2], [4, 5, 6]])
+    assert m._first_faces(F).tolist() == [True, False, True, False, False, True]
