@@ -15,6 +15,19 @@ from ._jit import compiled
 __all__ = ["double_areas", "corner_geometry", "pattern", "fill", "components", "abs_row_sums", "first_rows"]
 
 
+def _checked(V, F):
+    """(V, F) as the loops read them, the face indices checked (compiled loops check no bounds)."""
+    from .errors import MeshError
+
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    if F.ndim != 2 or F.shape[1] != 3 or V.ndim != 2 or V.shape[1] != 3:
+        raise MeshError(f"faces must have shape (m, 3) and vertices (n, 3), got {F.shape} and {V.shape}")
+    if F.size and (F.min() < 0 or F.max() >= len(V)):
+        raise MeshError(f"face indices must lie in [0, {len(V) - 1}] (the vertices), got {F.min()}..{F.max()}")
+    return V, F
+
+
 def _double_areas(V, F):
     m = F.shape[0]
     out = np.empty(m)
@@ -37,7 +50,8 @@ def double_areas(V, F):
     >>> double_areas(np.eye(3), np.array([[0, 1, 2]])).round(4).tolist()
     [1.7321]
     """
-    return compiled(_double_areas)(np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64))
+    V, F = _checked(V, F)
+    return compiled(_double_areas)(V, F)
 
 
 def _corner_geometry(V, F):
@@ -77,8 +91,7 @@ def corner_geometry(V, F):
     >>> dbl.tolist(), (cot + 0.0).round(6).tolist(), sq.tolist()
     ([1.0], [[0.0, 1.0, 1.0]], [[2.0, 1.0, 1.0]])
     """
-    return compiled(_corner_geometry)(np.ascontiguousarray(V, dtype=np.float64),
-                                      np.ascontiguousarray(F, dtype=np.int64))
+    return compiled(_corner_geometry)(*_checked(V, F))
 
 
 def _pattern(F, n):
@@ -104,15 +117,21 @@ def _pattern(F, n):
         # the repeats squeezed out (a row holds a dozen entries)
         r = nnz
         indices[r] = i
-        size = 1
-        for p in range(start[i], start[i + 1]):
-            v = cand[p]
-            q = r + size
-            while q > r and indices[q - 1] > v:
-                indices[q] = indices[q - 1]
-                q -= 1
-            indices[q] = v
-            size += 1
+        size = 1 + start[i + 1] - start[i]
+        if size > 64:  # a vertex of many faces (a fan): a real sort
+            indices[r + 1:r + size] = cand[start[i]:start[i + 1]]
+            row = indices[r:r + size].copy()  # (numba's quicksort is quadratic on a fan's order)
+            indices[r:r + size] = row[np.argsort(row, kind="mergesort")]
+        else:
+            size = 1
+            for p in range(start[i], start[i + 1]):
+                v = cand[p]
+                q = r + size
+                while q > r and indices[q - 1] > v:
+                    indices[q] = indices[q - 1]
+                    q -= 1
+                indices[q] = v
+                size += 1
         last = -1
         for p in range(r, r + size):
             v = indices[p]
@@ -135,7 +154,7 @@ def pattern(F, n):
     >>> [a.tolist() for a in pattern(np.array([[0, 1, 2], [1, 3, 2]]), 4)]
     [[0, 3, 7, 11, 14], [0, 1, 2, 0, 1, 2, 3, 0, 1, 2, 3, 1, 2, 3]]
     """
-    return compiled(_pattern)(np.ascontiguousarray(F, dtype=np.int64), int(n))
+    return compiled(_pattern)(_checked(np.zeros((int(n), 3)), F)[1], int(n))
 
 
 def _fill(F, cot, dbl, sq, indptr, indices, consistent, n):
@@ -151,10 +170,14 @@ def _fill(F, cot, dbl, sq, indptr, indices, consistent, n):
         for c in range(3):  # corner c weights the edge (c+1, c+2)
             i, j = F[t, (c + 1) % 3], F[t, (c + 2) % 3]
             for q, (r, col) in enumerate(((i, j), (j, i), (i, i), (j, j))):
-                p = indptr[r]
-                while indices[p] != col:  # rows are short (a dozen entries): a linear search
-                    p += 1
-                pos[q] = p
+                lo, hi = indptr[r], indptr[r + 1]
+                while lo < hi:  # binary search in the sorted row (a fan's centre has thousands)
+                    mid = (lo + hi) // 2
+                    if indices[mid] < col:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                pos[q] = lo
             w = -0.5 * cot[t, c]
             L[pos[0]] += w
             L[pos[1]] += w

@@ -70,7 +70,8 @@ def spmm(indptr, indices, data, Z, out, labels, parts, a, z):
             for p in range(indptr[i], indptr[i + 1]):
                 s += data[p] * Z[indices[p], 0]
             out[i, 0] = s
-            sums[labels[i], 0] += s
+            if labels[i] >= 0:
+                sums[labels[i], 0] += s
         return sums
     acc = np.zeros(c)
     for i in range(a, z):
@@ -84,18 +85,21 @@ def spmm(indptr, indices, data, Z, out, labels, parts, a, z):
         g = labels[i]
         for k in range(c):
             out[i, k] = acc[k]
-            sums[g, k] += acc[k]
+            if g >= 0:
+                sums[g, k] += acc[k]
     return sums
 
 
 def part_sums(X, labels, parts, a, z):
-    """The partial sums of the rows of ``X`` over each part (parts, c)."""
+    """The partial sums of the rows of ``X`` over each part (parts, c); rows labelled -1 (in no
+    part with a null vector) are left out."""
     c = X.shape[1]
     acc = np.zeros((parts, c))
     for i in range(a, z):
         p = labels[i]
-        for k in range(c):
-            acc[p, k] += X[i, k]
+        if p >= 0:
+            for k in range(c):
+                acc[p, k] += X[i, k]
     return acc
 
 
@@ -107,10 +111,12 @@ def project(Z, WZ, d, labels, mu, a, z):
     for i in range(a, z):
         p = labels[i]
         for k in range(c):
-            x = Z[i, k] - mu[p, k]
-            y = WZ[i, k] - d[i] * mu[p, k]
-            Z[i, k] = x
-            WZ[i, k] = y
+            x, y = Z[i, k], WZ[i, k]
+            if p >= 0:
+                x -= mu[p, k]
+                y -= d[i] * mu[p, k]
+                Z[i, k] = x
+                WZ[i, k] = y
             acc[k] += x * y
     return acc
 

@@ -240,15 +240,20 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
          f"certificate, ‖Φ_t f − exact‖_W / ‖f‖_W <= {bound[0]:.2g} at t_1 .. {bound[-1]:.2g} at t_10. The exact "
          f"kernel smooths by t alone: {counts[21]} -> {counts[30]} critical points across the paper's scales, "
          f"{flow_report.solves} solves on one factor)")
-    from .topology import compiled_in_this_process
+    from ._jit import any_compiled
 
-    critical_label = "critical points (31 fields" + (
-        "; incl. compiling the topology loops, once per installation)" if compiled_in_this_process() else ")")
+    def label(name, detail, module, what):  # the first run of an installation compiles the loops
+        notes = ([detail] if detail else []) + ([f"incl. compiling {what}, once per installation"]
+                                                 if any_compiled(module) else [])
+        return f"{name} ({'; '.join(notes)})" if notes else name
+
     stages = {"load": timings["load"], "resample": timings["resample"],
-              "assemble": spec.timings.get("assemble", 0.0), "factorize": spec.timings.get("factorize", 0.0),
+              label("assemble", "", "o3dheat._geometry_loops", "the assembly loops"): spec.timings.get("assemble", 0.0),
+              "factorize": spec.timings.get("factorize", 0.0),
               "eigensolve": spec.timings.get("solve", 0.0), "smooth (2 x 10 scales)": timings["smooth"],
-              "exact (10 scales)": timings["exact"],
-              "hks (10 scales)": timings["hks"], critical_label: timings["critical"],
+              label("exact", "10 scales", "o3dheat._krylov_loops", "the Krylov loops"): timings["exact"],
+              "hks (10 scales)": timings["hks"],
+              label("critical points", "31 fields", "o3dheat.topology", "the topology loops"): timings["critical"],
               "write PLY": timings["write"]}
     echo("seconds per stage: " + ", ".join(f"{key} {v:.2f}" for key, v in stages.items()))
     echo(f"wrote {out} (vertex attributes: f, f_smooth (n,10), f_smooth_log (n,10), f_exact (n,10), hks (n,10) "

@@ -111,46 +111,41 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     def count(g):
         return sum(critical_points(S, g).counts)
 
-    # Fig. 1: level sets and critical points across scales, and their variation
+    # Fig. 1: level sets and critical points across scales, and their variation; the same times
+    # with the full kernel (the hierarchy the truncation hides); the log grid's whole range
     ss = hierarchy(K, f, stop="linf")
-    cols = [0, 4, 9]
-    titles = [f"f ({count(f)} critical points)"] + [
-        f"Φ_t f, t = t{i + 1} ({ss.critical_counts[i].sum()} c.p., ε∞ {ss.errors[i]:.3f})" for i in cols]
-    _save(_panels(up, (V, F), np.c_[f, ss.fields[:, cols]], titles=titles, ncols=4, label="f, Φ_t f",
-                 suptitle=f"{name}: multi-scale approximation, k = {k} (Fig. 1e-k)"), out / "fig1_scales.png")
-    _save(plot.scale_space(ss, title=f"{name}: variation and critical points vs t (Fig. 1c,d)"), out / "fig1_variation.png")
-    entries += [("fig1_scales.png", "the field and Φ_t f at the paper's scales t1, t5, t10 with level sets and "
-                 "critical points (red maxima, blue minima, green saddles)"),
-                ("fig1_variation.png", "‖Φ_{t_{i+1}} f − Φ_{t_i} f‖∞, ε∞ and the number of critical points "
-                 "against t; the l∞ stop criterion (tolerance 1e-3 ‖f‖∞) "
-                 + (f"holds at scale {ss.stop_index + 1}" if ss.stopped else "holds at none of the scales"))]
-    # the same times with the full kernel: the hierarchy the truncation hides
     se = hierarchy(HeatFlow((V, F)), f, scales=t, stop="linf")
-    titles = [f"f ({count(f)} critical points)"] + [
-        f"exact Φ_t f, t{i + 1} ({se.critical_counts[i].sum()} c.p., ε∞ {se.errors[i]:.3f})" for i in cols]
-    _save(_panels(up, (V, F), np.c_[f, se.fields[:, cols]], titles=titles, ncols=4, label="f, Φ_t f",
-                 suptitle=f"{name}: the full heat kernel (no truncation) at the paper's scales"),
-          out / "fig1_exact_scales.png")
-    _save(plot.scale_space(se, title=f"{name}: variation and critical points vs t, full kernel"),
-          out / "fig1_exact_variation.png")
-    entries += [("fig1_exact_scales.png", "the field and Φ_t f of the full heat kernel (o3dheat.heat_flow, no "
-                 f"eigenpairs) at the same t1, t5, t10: critical points {se.critical_counts[0].sum()} -> "
-                 f"{se.critical_counts[-1].sum()}, where {k} eigenpairs give {ss.critical_counts[0].sum()} -> "
-                 f"{ss.critical_counts[-1].sum()} (the truncation, not t, smooths there)"),
-                ("fig1_exact_variation.png", "variation, ε∞ and critical points against t, full kernel")]
-    # the same on the log grid (1/λ_k .. 2 ln(100)/λ_2): the whole multi-scale range
     sl = hierarchy(K, f, scales=K.scales(10, grid="log"))
-    titles = [f"f ({count(f)} critical points)"] + [
-        f"Φ_t f, log t{i + 1} = {sl.scales[i]:.3g} ({sl.critical_counts[i].sum()} c.p.)" for i in cols]
-    _save(_panels(up, (V, F), np.c_[f, sl.fields[:, cols]], titles=titles, ncols=4, label="f, Φ_t f",
-                 suptitle=f"{name}: Φ_t f on the log grid 1/λ_k .. 2 ln(100)/λ_2, k = {k}"),
-          out / "fig1_log_scales.png")
-    _save(plot.scale_space(sl, title=f"{name}: variation and critical points vs t, log grid"),
-          out / "fig1_log_variation.png")
-    entries += [("fig1_log_scales.png", "the field and Φ_t f at t1, t5, t10 of the log grid, from 1/λ_k (what k "
-                 "eigenpairs resolve) to 2 ln(100)/λ_2 (nearly constant): critical points "
-                 f"{sl.critical_counts[0].sum()} -> {sl.critical_counts[-1].sum()}"),
-                ("fig1_log_variation.png", "variation, ε∞ and critical points against t on the log grid")]
+    panels = (
+        (ss, "fig1_scales.png", "fig1_variation.png", lambda i: f"Φ_t f, t = t{i + 1}",
+         f"{name}: multi-scale approximation, k = {k} (Fig. 1e-k)", f"{name}: variation and critical points vs t "
+         "(Fig. 1c,d)", "the field and Φ_t f at the paper's scales t1, t5, t10 with level sets and critical points "
+         "(red maxima, blue minima, green saddles)",
+         "‖Φ_{t_{i+1}} f − Φ_{t_i} f‖∞, ε∞ and the number of critical points against t; the l∞ stop criterion "
+         "(tolerance 1e-3 ‖f‖∞) " + (f"holds at scale {ss.stop_index + 1}" if ss.stopped else
+                                    "holds at none of the scales")),
+        (se, "fig1_exact_scales.png", "fig1_exact_variation.png", lambda i: f"exact Φ_t f, t{i + 1}",
+         f"{name}: the full heat kernel (no truncation) at the paper's scales",
+         f"{name}: variation and critical points vs t, full kernel",
+         "the field and Φ_t f of the full heat kernel (o3dheat.heat_flow, no eigenpairs) at the same t1, t5, t10: "
+         f"critical points {se.critical_counts[0].sum()} -> {se.critical_counts[-1].sum()}, where {k} eigenpairs "
+         f"give {ss.critical_counts[0].sum()} -> {ss.critical_counts[-1].sum()} (the truncation, not t, smooths "
+         "there)", "variation, ε∞ and critical points against t, full kernel"),
+        (sl, "fig1_log_scales.png", "fig1_log_variation.png", lambda i: f"Φ_t f, log t{i + 1} = {sl.scales[i]:.3g}",
+         f"{name}: Φ_t f on the log grid 1/λ_k .. 2 ln(100)/λ_2, k = {k}",
+         f"{name}: variation and critical points vs t, log grid",
+         "the field and Φ_t f at t1, t5, t10 of the log grid, from 1/λ_k (what k eigenpairs resolve) to "
+         f"2 ln(100)/λ_2 (nearly constant): critical points {sl.critical_counts[0].sum()} -> "
+         f"{sl.critical_counts[-1].sum()}", "variation, ε∞ and critical points against t on the log grid"),
+    )
+    cols = [0, 4, 9]
+    for h, scales_png, variation_png, label, suptitle, chart, about_scales, about_chart in panels:
+        titles = [f"f ({count(f)} critical points)"] + [
+            f"{label(i)} ({h.critical_counts[i].sum()} c.p., ε∞ {h.errors[i]:.3f})" for i in cols]
+        _save(_panels(up, (V, F), np.c_[f, h.fields[:, cols]], titles=titles, ncols=4, label="f, Φ_t f",
+                     suptitle=suptitle), out / scales_png)
+        _save(plot.scale_space(h, title=chart), out / variation_png)
+        entries += [(scales_png, about_scales), (variation_png, about_chart)]
     # Fig. 2: 10 vs k eigenpairs at two scales
     panels, titles = [], []
     for KK, kk in ((K10, K10.spectrum.k), (K, k)):

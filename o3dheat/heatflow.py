@@ -48,9 +48,9 @@ from scipy.sparse.csgraph import connected_components
 
 from . import checks, fem, parallel
 from ._geometry_loops import abs_row_sums, components
-from .errors import ConvergenceError, MeshError
+from .errors import ConvergenceError, MeshError, SolverError
 from .kernel import NORMALIZATIONS, first_nonzero, mass_of, transfer_function
-from .krylov import propagate
+from .krylov import MIN_STEPS, propagate
 from .linalg import analyze, available_memory, check_memory, factorize
 from .mesh import prepare
 from .spectrum import memoized, memoized_has, shared_eigensolve
@@ -192,7 +192,11 @@ class _Operators:
         # Gershgorin on D⁻¹L, D the lumped mass (W itself when diagonal): the consistent mass is
         # >= D/4 element by element (each element's mass has eigenvalues |t|/12 x {1, 1, 4})
         rows = abs_row_sums(self.L.indptr, self.L.data)
-        self.lam_max = float(np.max(rows / np.maximum(self.d, 1e-300))) * (4.0 if mass == "consistent" else 1.0)
+        diagonal = self.W is None or self.W.nnz == np.count_nonzero(self.W.diagonal())
+        if mass == "given" and not diagonal:  # no bound known for a mass built elsewhere
+            self.lam_max = None
+        else:
+            self.lam_max = float(np.max(rows / np.maximum(self.d, 1e-300))) * (4.0 if mass == "consistent" else 1.0)
         self._analysis = analysis
         self.seconds = seconds + time.perf_counter() - t0
 
@@ -205,8 +209,13 @@ class _Operators:
         analysis = parallel.background(analyze, sp.csc_matrix((np.ones(len(pattern[1])), pattern[1], pattern[0]),
                                                               shape=(n, n)))
         L, W, _ = fem.operators(prep.V, prep.F, mass, pattern=pattern)
-        return cls(L, None if mass == "identity" else W, mass, time.perf_counter() - t0, analysis,
-                   components(prep.F, n), symmetric=True)
+        ops = cls(L, None if mass == "identity" else W, mass, time.perf_counter() - t0, None,
+                  components(prep.F, n), symmetric=True)
+        # waited for here: no job of this process's threads is left in the cache (a forked child
+        # would wait for it forever)
+        ops._analysis = analysis.result()
+        ops.seconds = time.perf_counter() - t0
+        return ops
 
     def shifted(self, gamma):
         """``W + γL`` (CSC: symmetric), on L's pattern when W's is the same or diagonal."""
@@ -228,8 +237,7 @@ class _Operators:
     @property
     def analysis(self):
         """The symbolic analysis of the factors' pattern (None: each factorization analyses)."""
-        a = self._analysis
-        return a.result() if hasattr(a, "result") else a
+        return self._analysis
 
     @property
     def nbytes(self):
@@ -238,6 +246,31 @@ class _Operators:
             if M is not None:
                 total += M.data.nbytes + M.indices.nbytes + M.indptr.nbytes
         return total
+
+
+def _unit_columns(F):
+    """``(F / p, p)``: each column divided by a power of two ``p`` that brings its largest value
+    near 1 when it lies outside [2^-500, 2^500] (exact; ``p = 1`` for ordinary fields), so that
+    W-norms neither overflow nor underflow."""
+    top = np.max(np.abs(F), axis=0) if F.size else np.zeros(F.shape[1])
+    p = np.ones(F.shape[1])
+    far = (top > 0) & ((top < 2.0**-500) | (top > 2.0**500))
+    p[far] = 2.0 ** np.round(np.log2(top[far]))
+    return (F / p if far.any() else F), p
+
+
+def _null_parts(L):
+    """``(parts, labels)``: the connected parts of L's graph on which the constants are in L's
+    null space (``L 1_p = 0`` to rounding), numbered; -1 for the vertices of the other parts (a
+    Dirichlet boundary, a shifted operator: no null vector there)."""
+    count, labels = connected_components(L, directed=False)
+    rows = np.asarray(abs(L).sum(axis=1)).ravel()
+    residual = np.abs(np.bincount(labels, weights=np.asarray(L.sum(axis=1)).ravel(), minlength=count))
+    scale = np.bincount(labels, weights=rows, minlength=count)
+    null = residual <= 1e-12 * np.maximum(scale, 1e-300)
+    number = np.full(count, -1, np.int64)
+    number[null] = np.arange(int(null.sum()))
+    return int(null.sum()), number[labels]
 
 
 def _csr(M, symmetric=False):
@@ -359,19 +392,29 @@ class HeatFlow:
         """
         from .mesh import Prepared
 
-        L = sp.csr_matrix(L, dtype=np.float64)
+        try:
+            L = sp.csr_matrix(L, dtype=np.float64)
+            W = None if W is None else sp.csr_matrix(W, dtype=np.float64)
+        except (TypeError, ValueError) as e:
+            raise MeshError(f"L and W must be sparse (or dense) matrices of numbers: {e}") from None
         n = L.shape[0]
         if L.shape != (n, n) or (W is not None and W.shape != (n, n)):
             raise MeshError(f"L and W must be square and of one size, got {L.shape} and {getattr(W, 'shape', None)}")
         for name, M in (("L", L), ("W", W)):
-            if M is not None and M.nnz and abs(M - M.T).max() > 1e-10 * abs(M).max():
+            if M is None:
+                continue
+            if not np.all(np.isfinite(M.data)):
+                raise MeshError(f"{name} has NaN or infinite entries")
+            if M.nnz and abs(M - M.T).max() > 1e-10 * abs(M).max():
                 raise MeshError(f"{name} must be symmetric")
+        if np.any(L.diagonal() < 0) or (W is not None and np.any(W.diagonal() <= 0)):
+            raise MeshError("L must be positive semi-definite and W positive definite (a negative diagonal entry)")
         flow = cls(_OPERATORS, variant="weighted", normalize=normalize, transfer=transfer, backend=backend,
                    cache=False, tol=tol)
         flow.variant = "given"
         flow._prep = Prepared(np.zeros((n, 3)), np.zeros((0, 3), np.int64), np.arange(n), n)
         flow._key = None
-        flow._ops = _Operators(L, W, "given")
+        flow._ops = _Operators(L, W, "given", parts=_null_parts(L))
         flow._assembled = flow._ops.seconds
         return flow
 
@@ -455,6 +498,8 @@ class HeatFlow:
                                 "exp(-(t/2) φ(λ)) grows without bound as λ grows, so the full kernel does not "
                                 "exist; use the spectral kernel (o3dheat.HeatKernel), which truncates it")
             return
+        if self._ops.lam_max is None:  # a non-diagonal mass built elsewhere: no bound to sample up to
+            return
         top = self._ops.lam_max * unit  # above every (normalised) eigenvalue
         lam = np.concatenate([[0.0], np.geomspace(max(top * 1e-12, 1e-300), top, 400)])
         phi = self._phi(lam)
@@ -523,8 +568,9 @@ class HeatFlow:
         0.37
         """
         tol = self.tol if tol is None else checks.tolerance(tol)
-        if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
-            raise MeshError(f"max_steps must be a positive integer, got {max_steps!r}")
+        if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < MIN_STEPS:
+            raise MeshError(f"max_steps must be an integer >= {MIN_STEPS} (the fewest steps an error estimate "
+                            f"needs), got {max_steps!r}")
         f = checks.field(f, self.n)
         t_arr = checks.times(t)
         times = np.atleast_1d(t_arr)
@@ -565,44 +611,56 @@ class HeatFlow:
         groups = shift_groups(taus[order])
         gammas = [shift(scale * taus[order[g]].min(), scale * taus[order[g]].max()) for g in groups]
         null = (ops.labels, ops.d)
+        F, units = _unit_columns(F)
         pending = None  # the next group's factor, made on another core during this group's solves
-        for gi, (g, gamma) in enumerate(zip(groups, gammas)):
-            idx = order[g]
-            tg = taus[idx]
-            t0 = time.perf_counter()
-            shifted = self._factor(gamma, pending)
-            t1 = time.perf_counter()
-            pending = None
-            if gi + 1 < len(groups) and not self._has_factor(gammas[gi + 1]) and self._room_for_another(shifted):
-                pending = parallel.background(_Shifted, ops, gammas[gi + 1], self.backend)
-            backend = shifted.factor.backend
-            try:
-                _, info = propagate(shifted.factor.solve, ops.W, F, tg, gamma, null=null, tol=tol,
-                                    max_steps=max_steps, rates=rates, basis_bytes=self._basis_bytes(),
-                                    null_rate=null_rate, out=U[:, :, g[0]:g[-1] + 1],
-                                    release=shifted.factor.release)
-            finally:
-                shifted.factor.release()  # its solve workspaces (n x columns each): memory back now
-            t_sol += time.perf_counter() - t1
-            t_fac += t1 - t0
-            if not info.converged.all():
-                if pending is not None:
-                    pending.result()  # no factorization left running behind an error
-                bad = int(np.flatnonzero(~info.converged)[0])
-                worst = float(info.estimate[bad].max())
-                raise ConvergenceError(
-                    f"the heat flow did not reach tol={tol:g} in {max_steps} steps (column {bad}: estimated "
-                    f"relative error {worst:.2g} at times {times[idx].min():.4g}..{times[idx].max():.4g})"
-                    + ("; the transfer function may make the kernel too rough to approximate"
-                       if self._phi is not None else "; raise max_steps, or split the times"))
-            estimate[:, idx] = info.estimate
-            steps += info.steps
-            solves += info.solves
-            shifts.append((gamma, idx))
+        try:
+            for gi, (g, gamma) in enumerate(zip(groups, gammas)):
+                idx = order[g]
+                tg = taus[idx]
+                t0 = time.perf_counter()
+                shifted = self._factor(gamma, pending)
+                t1 = time.perf_counter()
+                pending = None
+                if (gi + 1 < len(groups) and not self._has_factor(gammas[gi + 1])
+                        and self._room_for_another(shifted)):
+                    pending = parallel.background(_Shifted, ops, gammas[gi + 1], self.backend)
+                backend = shifted.factor.backend
+                try:
+                    _, info = propagate(shifted.factor.solve, ops.W, F, tg, gamma, null=null, tol=tol,
+                                        max_steps=max_steps, rates=rates, basis_bytes=self._basis_bytes(),
+                                        null_rate=null_rate, out=U[:, :, g[0]:g[-1] + 1],
+                                        release=shifted.factor.release)
+                finally:
+                    shifted.factor.release()  # its solve workspaces (n x columns each): memory back now
+                t_sol += time.perf_counter() - t1
+                t_fac += t1 - t0
+                if not info.converged.all():
+                    bad = int(np.flatnonzero(~info.converged)[0])
+                    worst = float(info.estimate[bad].max())
+                    raise ConvergenceError(
+                        f"the heat flow did not reach tol={tol:g} in {max_steps} steps (column {bad}: estimated "
+                        f"relative error {worst:.2g} at times {times[idx].min():.4g}..{times[idx].max():.4g})"
+                        + ("; the transfer function may make the kernel too rough to approximate"
+                           if self._phi is not None else "; raise max_steps, or split the times"))
+                estimate[:, idx] = info.estimate
+                steps += info.steps
+                solves += info.solves
+                shifts.append((gamma, idx))
+        finally:
+            if pending is not None:  # no factorization left running behind an error
+                try:
+                    pending.result()
+                except Exception:  # noqa: BLE001 - the error being raised is the one to report
+                    pass
+        if np.any(units != 1.0):
+            with np.errstate(over="ignore", invalid="ignore"):
+                U *= units[None, :, None]
+            if not np.all(np.isfinite(U)):
+                raise SolverError("Φ_t f exceeds the float64 range (|values| > 1.8e308): rescale the field")
         if not in_order:
             ordered, U = U, np.empty((r, c, T))
             U[:, :, order] = ordered
-            U[:, :, zero] = F[:, :, None]
+            U[:, :, zero] = (F * units)[:, :, None]
             del ordered
         timings = {"assemble": self._assembled, "factorize": t_fac, "solve": t_sol}
         self._assembled = 0.0  # later calls reuse the operators

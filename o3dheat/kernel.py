@@ -476,9 +476,13 @@ class HeatKernel:
         if not return_bound:
             return h
         w = self.spectrum.inverse_mass_bound
+        if w is None:  # a Spectrum made by hand: bounded from its mass where that is possible
+            from .spectrum import inverse_mass_bound
+
+            w = inverse_mass_bound(self.spectrum.mass, self.spectrum.mass_kind)
         if w is None:
-            raise MeshError("no truncation bound for a non-diagonal mass built elsewhere (the diagonal of its "
-                            "inverse is not bounded)")
+            raise MeshError("no truncation bound for this spectrum: its mass is not diagonal nor the consistent "
+                            "FEM mass (the diagonal of its inverse is not bounded)")
         decay = np.exp(-0.5 * self._top_rate() * checks.times(t))
         tail_x = np.maximum(w - np.einsum("ij,ij->i", X, X), 0.0)
         if form == "density":
@@ -486,7 +490,9 @@ class HeatKernel:
         else:
             tail_w = np.maximum(self.spectrum.mass.diagonal() - np.einsum("ij,ij->i", self._WX, self._WX), 0.0)
             tail = np.sqrt(tail_x * tail_w)
-        return h, np.multiply.outer(tail, decay)
+        with np.errstate(invalid="ignore"):  # an unbounded tail (a vertex of zero mass) times exp(-inf)
+            bound = np.multiply.outer(tail, decay)
+        return h, np.where(np.isnan(bound), 0.0, bound)
 
     def _top_rate(self):
         """The largest rate φ(λ_k), a lower bound of every dropped rate when φ increases."""

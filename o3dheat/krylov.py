@@ -101,7 +101,8 @@ class Propagation:
 
 
 class _Null:
-    """The null space of L: the constants of each part (labels), ``d = W 1`` and each part's mass."""
+    """The null space of L: the constants of each part (labels; -1 for the rows of a part where
+    L has none), ``d = W 1`` and each part's mass."""
 
     def __init__(self, null, n):
         labels, d = null
@@ -111,7 +112,8 @@ class _Null:
             raise MeshError(f"the null space needs a label and a weight per row, got {self.labels.shape}, "
                             f"{self.d.shape}")
         self.parts = int(self.labels.max()) + 1 if n else 0
-        self.mass = np.bincount(self.labels, weights=self.d, minlength=self.parts)
+        on = self.labels >= 0
+        self.mass = np.bincount(self.labels[on], weights=self.d[on], minlength=self.parts)
 
     def project_out(self, X, WX, sums=None):
         """In place: X and WX = W X lose their W-orthogonal projection on each part's constants
@@ -209,6 +211,9 @@ def _coefficients(al, be, b0, gamma, taus, rates):
         th, U = np.array(al, dtype=np.float64), np.ones((1, 1))
     else:
         th, U = sla.eigh_tridiagonal(np.asarray(al), np.asarray(be[:m - 1]))
+    if th[-1] > 1.0 + 1e-8:  # s = 1/(1 + γλ) <= 1 for λ >= 0
+        raise SolverError(f"L has a negative eigenvalue (about {(1.0 / th[-1] - 1.0) / gamma:.3g}): the heat "
+                          "flow needs a positive semi-definite L (a Laplacian)")
     ok = th > 0
     lam = np.full(m, np.inf)
     lam[ok] = np.maximum((1.0 / th[ok] - 1.0) / gamma, 0.0)  # λ >= 0 (rounding near s = 1)
@@ -259,8 +264,8 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
     gamma : float
         The shift (> 0) the factor was made with.
     null : (labels, d) or None
-        The null space of ``L``: a part label per row (constants on each part) and ``d = W 1``.
-        None: ``L`` is positive definite.
+        The null space of ``L``: a part label per row (the constants of each part are in it; -1:
+        that row's part has no null vector) and ``d = W 1``. None: ``L`` is positive definite.
     tol : float
         Relative error asked, in the W-norm, relative to ``‖f − f₀‖_W`` (f₀ the null-space part).
     max_steps : int
@@ -269,7 +274,9 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
     rates : callable, optional
         ``φ``: decay rates of the eigenvalues (vectorised, finite), for transfer functions.
     null_rate : float
-        ``φ(0)``: the null-space part is multiplied by ``exp(−τ φ(0))`` (1 without ``rates``).
+        ``φ(0)``, factored out exactly: the result is ``exp(−τ φ(0))`` times that of the rates
+        ``φ − φ(0)`` (the null-space part's factor; 1 without ``rates``). The estimate is that of
+        the second factor.
     basis_bytes : int, optional
         Memory for the stored basis (default: unbounded); vectors beyond it are regenerated.
     min_steps : int
@@ -312,11 +319,18 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
     if not (0 < tol < 1):
         raise MeshError(f"tol must lie in (0, 1), got {tol}")
     T = len(taus)
+    if rates is not None and null_rate != 0.0:  # exp(-τ φ) = exp(-τ φ(0)) exp(-τ (φ - φ(0))): φ(0) exactly
+        phi = rates
+
+        def rates(lam):
+            return phi(lam) - null_rate
     if out is not None and (out.shape != (n, c, T) or out.dtype != np.float64):
         raise MeshError(f"out must be a float64 array of shape {(n, c, T)}, got {out.shape} {out.dtype}")
     W = sp.identity(n, format="csr") if W is None else sp.csr_matrix(W)
-    W.sort_indices()
-    null = _Null((np.zeros(n, np.int64), np.asarray(W.sum(axis=1)).ravel()) if null is None else null, n)
+    if not W.has_sorted_indices:
+        W = W.sorted_indices()  # a copy: the caller's matrix is never changed
+    d = np.asarray(W.sum(axis=1)).ravel()
+    null = _Null((np.full(n, -1, np.int64), d) if null is None else null, n)
     solve = _solver(solve)
     F1 = np.ascontiguousarray(F, dtype=np.float64).copy()
     WF1 = np.empty_like(F1)
@@ -350,7 +364,6 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
     blocks = []  # stored vectors: [cols, first step, count, (a, _CHUNK, n) array]
     budget = np.inf if basis_bytes is None else float(basis_bytes)
     used = 0.0
-    stored = {j: 0 for j in cols}
     saved = None  # (step, state copy) where storing stopped: the replay starts there
     schedule = []  # per step: the running columns (for the replay)
     solves = 0
@@ -371,8 +384,6 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
             used += need
         loops.rows(loops.transpose_into, n, state.V, last[3][:, last[2], :])
         last[2] += 1
-        for j in state.cols:
-            stored[j] += 1
 
     step = 0
     store(state, step)
@@ -398,7 +409,7 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
             if exhausted or (under[j] >= 2 and m >= min_steps) or m >= max_steps:
                 go[k] = False
                 converged[j] = exhausted or under[j] >= 2
-                done_coef[j] = Y
+                done_coef[j] = Y * decay  # exp(-τ φ(0)), 1 but for transfer functions
                 steps[j] = m
         be = be[go]
         state.keep(go)

@@ -533,7 +533,7 @@ class _CholmodFactor:
         self._fbuf = None
         c = self._contexts[0][0]
         if analysis is not None and analysis._fits(A, mode):  # the ordering and symbolic factor, made once
-            self._handle.value = lib.cholmod_copy_factor(analysis.handle, analysis.common)
+            self._handle.value = lib.cholmod_copy_factor(analysis.handle, c)  # own common: no shared state
         else:
             self._handle.value = lib.cholmod_analyze(ctypes.byref(S), c)
         if not self._handle.value:

@@ -625,7 +625,8 @@ def inverse_mass_bound(B, mass):
     B = sp.csr_matrix(B)
     d = B.diagonal()
     if mass != "consistent" and sp.csr_matrix(B - sp.diags(d)).count_nonzero() == 0:
-        return 1.0 / d
+        with np.errstate(divide="ignore"):
+            return np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), np.inf)  # a zero mass: no bound
     if mass == "consistent":
         return 4.0 / np.asarray(B.sum(axis=1)).ravel()
     return None

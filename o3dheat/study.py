@@ -82,7 +82,8 @@ def _descriptors(V, F, kernels, descriptors, k, times, axis, grid="paper", scale
         spectral = method == "spectral" or times is None or not set(descriptors) <= smooth_only
         K = heat_kernel((V, F), k=k, variant=kern) if spectral else None
         t = used[kern] = K.scales(scales, grid=grid) if times is None else times[kern]
-        S = K if method == "spectral" else HeatFlow((V, F), variant=kern, cache=False)
+        S = K if method == "spectral" or not smooth_only & set(descriptors) else HeatFlow((V, F), variant=kern,
+                                                                                        cache=False)
         for d in descriptors:
             if d.startswith("hks_"):
                 out[kern, d] = K.hks(t, form=d[len("hks_"):])

@@ -37,14 +37,13 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench_spectrum import bunny  # noqa: E402
+from bench_spectrum import PeakMemory, bunny  # noqa: E402
 
 K_EIG = 100  # eigenpairs of the spectral pipelines (and of the reference defining the times)
 TOL = 1e-8  # tolerance of the exact case
@@ -110,31 +109,14 @@ def child(method, path, nfields, grid, out):
     Vs, Fs = np.asarray(s.vertices, np.float64), np.asarray(s.triangles, np.int64)
     fs = make_fields(Vs, nfields)
     pipeline(method, Vs, Fs, fs[:, 0] if nfields == 1 else fs, np.geomspace(1e-3, 1.0, len(t)))
-    page = os.sysconf("SC_PAGE_SIZE")
-
-    def rss():
-        with open("/proc/self/statm") as fh:
-            return int(fh.read().split()[1]) * page
-
-    base = rss()
-    peak = [base]
-    stop = threading.Event()
-
-    def sample():  # peak resident memory while working, sampled every 10 ms
-        while not stop.is_set():
-            peak[0] = max(peak[0], rss())
-            time.sleep(0.01)
-
-    th = threading.Thread(target=sample, daemon=True)
-    th.start()
+    peak = PeakMemory()
     t0 = time.perf_counter()
     res, info = pipeline(method, V, F, f, t)
     dt = time.perf_counter() - t0
-    stop.set()
-    th.join()
+    peak_bytes = peak.stop()
     if out != "-":
         np.save(out, res)
-    print(json.dumps({"seconds": dt, "peak_mb": (max(peak[0], rss()) - base) / 2**20} | info))
+    print(json.dumps({"seconds": dt, "peak_mb": peak_bytes / 2**20} | info))
 
 
 def accuracy(K, V, F, f, paper, log):

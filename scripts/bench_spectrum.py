@@ -59,6 +59,35 @@ def bunny(n):
     return np.asarray(V2, np.float64), np.asarray(F2, np.int64)
 
 
+class PeakMemory:
+    """The largest resident set size of this process from now on, sampled every 10 ms, minus the
+    resident size at the start: ``stop()`` ends the sampling and returns it (bytes)."""
+
+    def __init__(self):
+        import threading
+
+        self._page = os.sysconf("SC_PAGE_SIZE")
+        self._base = self._rss()
+        self._peak = self._base
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._sample, daemon=True)
+        self._thread.start()
+
+    def _rss(self):
+        with open("/proc/self/statm") as fh:
+            return int(fh.read().split()[1]) * self._page
+
+    def _sample(self):
+        while not self._stop.is_set():
+            self._peak = max(self._peak, self._rss())
+            time.sleep(0.01)
+
+    def stop(self):
+        self._stop.set()
+        self._thread.join()
+        return max(self._peak, self._rss()) - self._base
+
+
 def child(method, path, k, out):
     """Run one case; print JSON with seconds and peak memory above the starting point."""
     z = np.load(path)
@@ -70,25 +99,7 @@ def child(method, path, k, out):
     from o3dheat.linalg import available_backends
 
     available_backends()  # loads CHOLMOD and cholespy: library loading is not part of the timing
-    import threading
-
-    page = os.sysconf("SC_PAGE_SIZE")
-
-    def rss():
-        with open("/proc/self/statm") as fh:
-            return int(fh.read().split()[1]) * page
-
-    base = rss()
-    peak = [base]
-    stop = threading.Event()
-
-    def sample():  # peak resident memory while solving, sampled every 10 ms
-        while not stop.is_set():
-            peak[0] = max(peak[0], rss())
-            time.sleep(0.01)
-
-    th = threading.Thread(target=sample, daemon=True)
-    th.start()
+    peak = PeakMemory()
     t0 = time.perf_counter()
     if method.startswith("o3dheat"):
         s = o3dheat.eigensolve((V, F), k=k, method="arpack" if method == "o3dheat-arpack" else "auto")
@@ -106,10 +117,8 @@ def child(method, path, k, out):
         lam, _ = s.eigs(k=k)
         extra = "cholespy" if method == "lapy-cholmod" else "SuperLU"
     dt = time.perf_counter() - t0
-    stop.set()
-    th.join()
     np.save(out, np.sort(lam))
-    print(json.dumps({"seconds": dt, "peak_mb": (max(peak[0], rss()) - base) / 2**20, "extra": extra}))
+    print(json.dumps({"seconds": dt, "peak_mb": peak.stop() / 2**20, "extra": extra}))
 
 
 def main():

@@ -30,7 +30,8 @@ def dense(V, F, variant):
     L, W, _ = fem.operators(V, F, mass_of(variant))
     L, W = L.toarray(), W.toarray()
     lam, X = sla.eigh(L, W)
-    return L, W, np.maximum(lam, 0.0), X
+    lam[lam <= 1e-8 * lam.max()] = 0.0  # the constants of each part: exactly 0 (eigh gives ~1e-13)
+    return L, W, lam, X
 
 
 def reference(W, lam, X, f, t, phi=None):
@@ -245,8 +246,10 @@ def test_transfer_functions_that_do_not_converge_are_refused():
 
 def test_an_unconverged_answer_is_never_returned():
     V, F = icosphere(3)
-    with pytest.raises(ConvergenceError, match="did not reach tol=1e-08 in 5 steps"):
-        HeatFlow((V, F)).apply(V[:, 0] + np.sin(9 * V[:, 2]), [1e-4, 1.0], max_steps=5)
+    with pytest.raises(ConvergenceError, match="did not reach tol=1e-08 in 9 steps"):
+        HeatFlow((V, F)).apply(V[:, 0] + np.sin(9 * V[:, 2]), [1e-4, 1.0], max_steps=9)
+    with pytest.raises(MeshError, match="max_steps must be an integer >= 8"):
+        HeatFlow((V, F)).apply(V[:, 0], 1.0, max_steps=5)
 
 
 # ---------------------------------------------------------------- hypothesis and real files
@@ -315,3 +318,102 @@ def test_real_files_agree_with_the_certified_spectral_kernel(name):
     err = np.sqrt(np.einsum("it,it->t", E - F, W @ (E - F))) / nf
     assert np.all(err <= bound + 2 * TOL), (err, bound)
     assert rep.estimate.max() <= TOL
+
+
+
+# --------------------------------------------------------------------- found by review
+def test_huge_and_tiny_fields_are_scaled_not_mistaken_for_constants():
+    V, F = icosphere(2)
+    f = V[:, 0] + 0.3 * V[:, 1] ** 2
+    ref = heat_flow((V, F), f, [0.1, 0.5])
+    for scale in (1e200, 1e-170, 2.0**600):
+        g, rep = heat_flow((V, F), scale * f, [0.1, 0.5], return_report=True)
+        assert rep.solves > 0 and np.allclose(g / scale, ref, rtol=0, atol=1e-9)
+    with pytest.raises(o3dheat.SolverError, match="float64 range"):
+        heat_flow((V, F), 1e308 * f, 0.1, transfer=[-1000.0, 1.0])  # exp(500) x 1e308
+
+
+def test_operators_built_elsewhere_without_null_space_or_with_a_dia_mass():
+    import scipy.sparse as sp
+
+    n = 30
+    L = sp.diags([np.full(n, 2.0), -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1], format="csr")  # Dirichlet
+    f = np.ones(n)
+    exact = sla.expm(-L.toarray()) @ f  # t = 2: exp(-(t/2) L)
+    g = o3dheat.HeatFlow.from_operators(L, None).apply(f, 2.0)
+    assert np.abs(g - exact).max() < 1e-8 * np.abs(f).max()
+    Lg = sp.diags([np.r_[1.0, np.full(n - 2, 2.0), 1.0], -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1])  # Neumann
+    W = sp.diags(np.linspace(0.5, 1.5, n))  # a dia_matrix, as sp.diags makes it
+    Wd = W.toarray()
+    exact = sla.expm(-np.linalg.solve(Wd, Lg.toarray())) @ f
+    for mass in (W, Wd):
+        assert np.abs(o3dheat.HeatFlow.from_operators(Lg, mass).apply(f, 2.0) - exact).max() < 1e-8
+    with pytest.raises(o3dheat.SolverError, match="negative eigenvalue"):
+        o3dheat.HeatFlow.from_operators(Lg - 0.5 * sp.identity(n), None).apply(np.arange(n, dtype=float), 1.0)
+    with pytest.raises(MeshError, match="NaN"):
+        o3dheat.HeatFlow.from_operators(sp.diags([np.full(3, np.nan)], [0]), None)
+
+
+def test_a_capped_basis_regenerates_the_same_vectors():
+    import scipy.sparse as sp
+
+    from o3dheat.krylov import propagate
+
+    V, F = irregular()
+    L, W, lam, X = dense(V, F, "weighted")
+    Ls, Ws = fem.operators(V, F)[:2]
+    taus = np.geomspace(1e-3, 1.0, 6) / lam[99]
+    gamma = shift(taus.min(), taus.max())
+    solve = o3dheat.linalg.factorize(sp.csc_matrix(Ws + gamma * Ls)).solve
+    f = np.column_stack([V[:, 0] + np.sin(5 * V[:, 1]), np.cos(3 * V[:, 2]), np.ones(len(V))])
+    null = (np.zeros(len(V), int), np.asarray(Ws.sum(axis=1)).ravel())
+    full, a = propagate(solve, Ws, f, taus, gamma, null=null)
+    capped, b = propagate(solve, Ws, f, taus, gamma, null=null, basis_bytes=8 * len(V) * 16 * 2)
+    assert a.replayed == 0 and b.replayed > 0 and b.solves > a.solves
+    assert np.array_equal(a.steps, b.steps) and np.allclose(full, capped, rtol=0, atol=1e-13)
+    R = reference(W, lam, X, f[:, :2], 2 * taus)
+    N = X[:, lam == 0]
+    f1 = f[:, :2] - N @ (N.T @ (W @ f[:, :2]))
+    assert (wnorm(W, capped[:, :2] - R) / wnorm(W, f1)[:, None]).max() <= TOL
+
+
+def test_an_analysis_of_another_pattern_is_not_used():
+    import scipy.sparse as sp
+
+    from o3dheat.linalg import analyze, factorize
+
+    A = sp.diags([np.full(49, -1.0), np.full(50, 3.0), np.full(49, -1.0)], [-1, 0, 1], format="csc")
+    B = sp.diags([np.full(48, -1.0), np.full(50, 3.0), np.full(48, -1.0)], [-2, 0, 2], format="csc")
+    x = np.arange(50.0)
+    assert np.allclose(factorize(B, analysis=analyze(A)).solve(B @ x), x)
+
+
+def test_transfer_functions_negative_at_zero_factor_exactly():
+    V, F = icosphere(2)
+    f = V[:, 2] + 0.1
+    t = np.array([0.1, 1.0])
+    a = heat_flow((V, F), f, t, transfer=[-50.0, 1.0])  # exp(-(t/2)(λ - 50)) = exp(25 t) K_t
+    assert np.allclose(a, np.exp(25.0 * t) * heat_flow((V, F), f, t), rtol=1e-8, atol=0)
+
+
+def test_no_job_is_left_pending_for_a_forked_child():
+    import multiprocessing
+
+    V, F = irregular()
+    flow = HeatFlow((V, F))
+    assert not hasattr(flow._ops.analysis, "result")  # the background analysis was waited for
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        g = pool.apply_async(heat_flow, ((V, F), V[:, 0], 0.1)).get(timeout=120)
+    assert np.allclose(g, flow.apply(V[:, 0], 0.1), atol=1e-12)
+
+
+def test_a_fan_of_many_faces_assembles_like_libigl():
+    igl = pytest.importorskip("igl")
+    N = 5000  # a disk triangulated around its centre, as CAD exports write cylinder caps
+    ang = np.linspace(0, 2 * np.pi, N, endpoint=False)
+    V = np.vstack([[0.0, 0.0, 0.0], np.c_[np.cos(ang), np.sin(ang), 0.1 * np.sin(3 * ang)]])
+    F = np.c_[np.zeros(N, int), 1 + np.arange(N), 1 + (np.arange(N) + 1) % N]
+    L = fem.stiffness_matrix(V, F)
+    assert abs(L + igl.cotmatrix(V, F)).max() < 1e-9 * abs(L).max()
+    with pytest.raises(MeshError, match="face indices must lie in"):
+        fem.stiffness_matrix(V[:4], np.array([[0, 1, 2], [1, 3, 4]]))
