@@ -7,8 +7,10 @@ or ``k`` close to ``n``, are solved densely.
 
 Conventions: eigenvalues ascending and ``>= 0`` (``L`` is positive semi-definite); eigenvectors
 B-orthonormal (``Xᵀ B X = I``); the sign of each eigenvector is fixed so that its entry of largest
-magnitude is positive (first such entry on ties). Within a multiple eigenvalue the basis is
-arbitrary but deterministic (the start vectors are seeded).
+magnitude is positive (first such entry on ties). Within a multiple eigenvalue (equal to the
+solver's accuracy) the basis is a canonical one of the eigenspace, whatever basis the solver
+found (:func:`_canonical_bases`): the same, to rounding, for every method, thread count and run;
+bit for bit only where the eigenvalues are simple.
 """
 
 from __future__ import annotations
@@ -690,8 +692,30 @@ def _solve(L, B, k, method, sigma, backend, seed, tol, block):
             log.warning("eigensolver %r failed (%s): falling back to %r", m, e, chain[i + 1])
 
 
+def _canonical_bases(lam, X, B, scale, rel=1e-9):
+    """In place: the basis of each cluster of equal eigenvalues (to ``rel`` of ``scale``, the
+    eigensolver's accuracy: numerically one eigenspace) made independent of how the solver chose
+    it: ``X_c P`` with ``P`` the orthogonal polar factor of ``X_cᵀ B G``, ``G`` a fixed
+    pseudo-random block. Any B-orthonormal basis ``X_c Q`` of the same space gives the same result
+    (to rounding): ``polar(Qᵀ M) = Qᵀ polar(M)``. Four concurrent dense eigensolves (threads
+    change the BLAS's rounding) rotated the sphere's multiple eigenvectors arbitrarily before."""
+    k = len(lam)
+    i = 0
+    while i < k:
+        j = i + 1
+        while j < k and lam[j] - lam[j - 1] <= rel * max(abs(lam[j]), scale):
+            j += 1
+        if j - i > 1:
+            G = np.random.default_rng(20261201 + j - i).standard_normal((X.shape[0], j - i))
+            U, _, Vt = np.linalg.svd(X[:, i:j].T @ (B @ G))
+            X[:, i:j] = X[:, i:j] @ (U @ Vt)
+        i = j
+    return X
+
+
 def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
     r = L.shape[0]
+    B_in = B
     use_dense = method == "dense"
     s = float("nan") if use_dense else (_shift(B) if sigma is None else float(sigma))
     perm, t_perm = None, 0.0
@@ -722,6 +746,9 @@ def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
     if perm is not None:
         X = _unpermuted(X, perm)
     X = _fix_signs(X)  # in the caller's numbering: "first entry on ties" is well defined there
+    # after the signs: a multiple eigenvalue's canonical basis has its own signs (the polar factor
+    # is unique), where "largest entry" ties to rounding on a symmetric mesh
+    X = _canonical_bases(lam, np.asfortranarray(X), sp.csr_matrix(B_in), _weyl_gap(B_in))
     t_sol += t_perm + time.perf_counter() - t0
     return lam, X, used, s, res, {"factorize": t_fac, "solve": t_sol, "cache": False}
 

@@ -496,3 +496,28 @@ def test_the_supernodal_path_gives_the_same_spectrum(monkeypatch):
     s = o3dheat.eigensolve((V, F), k=40, method="lanczos")
     np.testing.assert_allclose(s.eigenvalues, ref.eigenvalues, rtol=1e-9, atol=1e-9)
     assert s.residuals.max() < 1e-8
+
+
+def test_multiple_eigenvalues_have_one_basis_whatever_the_solver():
+    """Issue 22: the icosphere's multiple eigenvalues (icosahedral symmetry: clusters of 3, 5, 3+4)
+    got a different basis from each solver and from concurrent dense solves; now the canonical one
+    (the polar factor against a seeded block), signs included, to rounding."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    V, F = icosphere(3)
+    ref = o3dheat.eigensolve((V, F), k=16, method="dense", cache=False)
+    lam = ref.eigenvalues
+    assert np.sum(np.diff(lam[1:4]) < 1e-9 * lam[3]) == 2  # a genuine triple eigenvalue
+    others = [o3dheat.eigensolve((V, F), k=16, method=m, cache=False) for m in ("arpack", "lanczos")]
+    with ThreadPoolExecutor(4) as pool:
+        others += list(pool.map(lambda _: o3dheat.eigensolve((V, F), k=16, method="dense", cache=False),
+                                range(4)))
+    for s in others:
+        np.testing.assert_allclose(s.eigenvectors, ref.eigenvectors, atol=1e-7)
+    # a basis rotated inside the eigenspace by hand is brought back to the same one
+    from o3dheat.spectrum import _canonical_bases
+    Q = np.linalg.qr(np.random.default_rng(3).standard_normal((3, 3)))[0]
+    X = ref.eigenvectors.copy()
+    X[:, 1:4] = X[:, 1:4] @ Q
+    _canonical_bases(lam, X, ref.mass.tocsr(), 1.0)
+    np.testing.assert_allclose(X, ref.eigenvectors, atol=1e-10)
