@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import os
 import re
 import sys
 import typing
@@ -750,7 +751,8 @@ class Chain:
         paths : str, Path or sequence of them
             Files or glob patterns (``"scans/*.ply"``).
         out_dir : str or Path
-            Output folder: ``out_dir/<input stem>.ply`` (or ``.npz``) per input.
+            Output folder: ``out_dir/<input stem>.ply`` (or ``.npz``) per input. Required (no
+            default folder): anything else is a MeshError.
         scheduler : None, "sequential", str or distributed.Client
             None: a local Dask cluster; "sequential": in this process; an address or a Client.
         overwrite : bool
@@ -776,6 +778,8 @@ class Chain:
         """
         from .batch import run  # batch imports this module
 
+        if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir).strip():
+            raise MeshError(f"Chain.map: out_dir must be the output folder (a str or Path), got {out_dir!r}")
         return run(self, paths, out_dir, scheduler=scheduler, overwrite=overwrite, suffix=suffix, binary=binary,
                    progress=progress)
 

@@ -616,3 +616,10 @@ def test_a_chain_refuses_before_any_work(monkeypatch):
     with pytest.raises(MeshError, match=r"step 1 \(colorize\): unknown colormap 'nope'"):
         flt.Chain([("colorize", {"attribute": "positions", "column": 0, "colormap": "nope"})]).check(
             o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6))
+
+
+def test_chain_map_needs_an_output_folder(tmp_path):
+    chain = flt.Chain([("scalar", {"kind": "height"})])
+    for bad in (None, 3, ""):
+        with pytest.raises(MeshError, match=r"Chain.map: out_dir must be the output folder.*got " + re.escape(repr(bad))):
+            chain.map(tmp_path / "*.ply", bad, scheduler="sequential")
