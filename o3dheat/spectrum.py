@@ -20,7 +20,6 @@ import hashlib
 import logging
 import os
 import sys
-import tempfile
 import time
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -32,7 +31,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from . import fem, parallel
+from . import _spectrum_files, fem, parallel
 from .errors import ConvergenceError, MeshError, SolverError
 from .lanczos import block_lanczos, rayleigh_ritz
 from .linalg import OutOfMemory, available_memory, check_memory, factorize
@@ -195,9 +194,12 @@ def cache_max_bytes():
 def _megabytes(variable, default):
     """Bytes of the environment variable ``variable`` (megabytes), else of ``default``."""
     try:
-        return int(float(os.environ.get(variable, str(default))) * 2**20)
-    except (ValueError, OverflowError):  # not a number, or inf
-        raise MeshError(f"{variable} must be a number, got {os.environ[variable]!r}") from None
+        value = float(os.environ.get(variable, str(default)))
+        if not value >= 0:  # negative or NaN: a budget of nothing is 0
+            raise ValueError
+        return int(value * 2**20)
+    except (ValueError, OverflowError):  # not a number, negative, or inf
+        raise MeshError(f"{variable} must be a number of megabytes >= 0, got {os.environ[variable]!r}") from None
 
 
 # ------------------------------------------------------------------ the in-memory cache (shared)
@@ -811,79 +813,29 @@ def _check_k(k):
 
 
 def _cache_load(folder, key):
-    path = Path(folder) / f"spectrum-{key}.npz"
-    if not path.exists():
+    """``(eigenvalues, eigenvectors, backend, sigma, residuals)`` of a signed entry, else None."""
+    z = _spectrum_files.cache_load(folder, key)
+    if z is None:
         return None
     try:
-        os.utime(path)  # used now: the last to be pruned
-    except OSError:
-        pass
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            return (z["eigenvalues"], z["eigenvectors"], str(z["backend"]), float(z["sigma"]),
-                    z["residuals"])
-    except Exception as e:  # a corrupt cache file is ignored, never fatal
-        log.warning("ignoring unreadable cache file %s (%s)", path, e)
+        return (z["eigenvalues"], z["eigenvectors"], str(z["backend"]), float(z["sigma"]), z["residuals"])
+    except (KeyError, ValueError, TypeError) as e:
+        log.warning("ignoring the cache entry %s (%s)", key, e)
         return None
 
 
 def _cache_valid(cached, L, B, k, tol):
-    """A cached spectrum is used only if it has the right shapes, finite values, ascending
-    eigenvalues, B-unit eigenvectors and small residuals for these very operators (O(nnz k))."""
-    lam, X, _, _, _ = cached
+    """A signed entry (o3dheat's own write, :mod:`o3dheat._spectrum_files`) is used if it has the
+    shapes of this problem, finite values and ascending eigenvalues (O(n k)): its residuals were
+    checked when it was computed."""
+    lam, X, _, _, res = cached
     r = L.shape[0]
     if lam.shape != (k,) or X.shape != (r, k) or lam.dtype != np.float64 or X.dtype != np.float64:
         return False
-    if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(X))) or np.any(np.diff(lam) < 0) or lam[0] < 0:
-        return False
-    res, norms = _residuals(L, B, lam, X, b_norms=True)
-    return bool(np.abs(norms - 1).max() <= 1e-6 and res.max() <= max(100 * tol, 1e-6))
+    return bool(np.all(np.isfinite(lam)) and np.all(np.isfinite(X)) and np.all(np.diff(lam) >= 0)
+                and lam[0] >= 0 and res.shape == (k,))
 
 
 def _cache_save(folder, key, lam, X, backend, sigma, res):
-    folder = Path(folder)
-    tmp = None
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix="spectrum-", suffix=".npz.tmp")
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, eigenvalues=lam, eigenvectors=X, backend=backend, sigma=sigma, residuals=res)
-        os.replace(tmp, folder / f"spectrum-{key}.npz")
-        tmp = None
-        _cache_prune(folder, cache_max_bytes(), keep=folder / f"spectrum-{key}.npz")
-    except OSError as e:
-        log.warning("could not write the spectrum cache in %s (%s)", folder, e)
-    finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
-
-
-def _cache_prune(folder, budget, keep=None, stale_after=3600.0):
-    """Delete temporary files left by interrupted writes (older than an hour: a live writer is
-    faster), then the least recently used spectra until the folder holds at most ``budget`` bytes
-    (``keep``, the spectrum just written, stays even when it alone exceeds the budget)."""
-    now = time.time()
-    for tmp in folder.glob("spectrum-*.npz.tmp"):
-        try:
-            if now - tmp.stat().st_mtime > stale_after:
-                tmp.unlink()
-        except OSError:
-            pass
-    files = []
-    for f in folder.glob("spectrum-*.npz"):
-        try:
-            st = f.stat()
-            files.append((st.st_mtime, st.st_size, f))
-        except OSError:
-            pass
-    total = sum(size for _, size, _ in files)
-    for _, size, f in sorted(files):  # oldest use first
-        if total <= budget:
-            break
-        if f == keep:
-            continue
-        try:
-            f.unlink()
-            total -= size
-        except OSError:
-            pass
+    _spectrum_files.cache_save(folder, key, {"eigenvalues": lam, "eigenvectors": X, "backend": np.array(backend),
+                                             "sigma": np.array(sigma), "residuals": res}, cache_max_bytes())

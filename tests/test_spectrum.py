@@ -521,3 +521,52 @@ def test_multiple_eigenvalues_have_one_basis_whatever_the_solver():
     X[:, 1:4] = X[:, 1:4] @ Q
     _canonical_bases(lam, X, ref.mass.tocsr(), 1.0)
     np.testing.assert_allclose(X, ref.eigenvectors, atol=1e-10)
+
+
+def test_the_cache_reads_only_its_own_writes(tmp_path, irregular_mesh, caplog, monkeypatch):
+    """Issue 22: crafted entries (k copies of one eigenvector; eigenpairs 5..14 stored as the
+    smallest 10) passed the residual check. Entries are now signed with the folder's secret key:
+    a file not written by o3dheat for this key is recomputed, and the pruning never deletes a
+    user's own file."""
+    import os
+    import shutil
+
+    import o3dheat.spectrum as S
+
+    V, F = irregular_mesh
+    ref = o3dheat.eigensolve((V, F), k=10, cache=tmp_path, method="arpack")
+    more = o3dheat.eigensolve((V, F), k=14, cache=False, method="arpack")
+    key_file = tmp_path / ".o3dheat-key"
+    assert key_file.stat().st_size == 32 and (os.name == "nt" or key_file.stat().st_mode & 0o077 == 0)
+    (entry,) = tmp_path.glob("spectrum-*.npz")
+    with np.load(entry) as z:
+        genuine = dict(z)
+    x0 = more.eigenvectors[:, :1]
+    crafted = {"copies": {**genuine, "eigenvalues": np.zeros(10), "eigenvectors": np.repeat(x0, 10, axis=1),
+                          "residuals": np.zeros(10)},
+               "shifted": {**genuine, "eigenvalues": more.eigenvalues[4:14], "eigenvectors": more.eigenvectors[:, 4:14],
+                           "residuals": more.residuals[4:14]}}
+    for name, data in crafted.items():
+        np.savez(entry, **data)  # the genuine signature kept: it does not match the new arrays
+        with caplog.at_level(logging.WARNING, logger="o3dheat"):
+            caplog.clear()
+            s = o3dheat.eigensolve((V, F), k=10, cache=tmp_path, method="arpack")
+        assert s.timings["cache"] is False and "signature does not match" in caplog.text, name
+        np.testing.assert_allclose(s.eigenvalues, ref.eigenvalues, rtol=1e-10)
+    # an entry copied from another cache folder (another key) is not trusted either
+    other = tmp_path / "other"
+    o3dheat.eigensolve((V, F), k=10, cache=other, method="arpack")
+    shutil.copy(next(other.glob("spectrum-*.npz")), entry)
+    assert o3dheat.eigensolve((V, F), k=10, cache=tmp_path, method="arpack").timings["cache"] is False
+    assert o3dheat.eigensolve((V, F), k=10, cache=tmp_path, method="arpack").timings["cache"] is True
+    # pruning: a user's own spectrum-*.npz files stay, whatever the budget
+    mine = [tmp_path / "spectrum-mine.npz", tmp_path / ("spectrum-" + "0" * 31 + "x.npz")]
+    for p in mine:
+        np.savez(p, eigenvalues=ref.eigenvalues)
+    monkeypatch.setenv("O3DHEAT_CACHE_MAX_MB", "0")
+    o3dheat.eigensolve((V, F), k=6, cache=tmp_path, method="arpack")
+    assert all(p.exists() for p in mine) and len(list(tmp_path.glob("spectrum-*.npz"))) == 3
+    for bad in ("-1", "nan", "lots"):
+        monkeypatch.setenv("O3DHEAT_CACHE_MAX_MB", bad)
+        with pytest.raises(o3dheat.MeshError, match="O3DHEAT_CACHE_MAX_MB must be a number of megabytes >= 0"):
+            S.cache_max_bytes()

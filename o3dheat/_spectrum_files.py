@@ -1,0 +1,182 @@
+"""Spectra on disk: the signed entries of the spectrum cache, and the self-contained ``.npz`` files
+of :meth:`o3dheat.Spectrum.save` (entry points: :func:`cache_load`, :func:`cache_save`,
+:func:`prune`, :func:`write_npz`).
+
+Only o3dheat's own writes are read back from a cache folder: every entry carries a keyed BLAKE2b
+signature of its name and arrays, made with a secret kept in the folder (``.o3dheat-key``, 32
+random bytes, readable by its owner only, created once). A file placed in the folder by another
+tool or by hand, edited, renamed to another key or copied from another folder has no matching
+signature and is recomputed, never trusted. This guards against accidents and foreign files, not
+against someone who can read the key (they can write the folder anyway). Pruning deletes only
+o3dheat's own names (``spectrum-<32 hex digits>.npz`` and its writers' temporary files).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import logging
+import os
+import re
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger("o3dheat")
+
+KEY_FILE = ".o3dheat-key"
+ENTRY = re.compile(r"spectrum-[0-9a-f]{32}\.npz")
+PARTIAL = re.compile(r"spectrum-[A-Za-z0-9_]+\.npz\.tmp")  # tempfile.mkstemp's names
+
+
+def entry_path(folder, key):
+    """The cache entry of ``key`` (a 32-digit hex string) in ``folder``."""
+    return Path(folder) / f"spectrum-{key}.npz"
+
+
+def folder_key(folder, create):
+    """The folder's secret (bytes), made on first use when ``create``; None when it has none or
+    cannot be read. Made by a hard link of a complete file: a concurrent reader never sees a
+    partial key."""
+    path = Path(folder) / KEY_FILE
+    for _ in range(2):
+        try:
+            secret = path.read_bytes()
+            if len(secret) == 32:
+                return secret
+            log.warning("ignoring the malformed cache key %s: the folder's entries are not trusted", path)
+            return None
+        except FileNotFoundError:
+            if not create:
+                return None
+        except OSError:
+            return None
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".o3dheat-key-")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(os.urandom(32))
+            os.chmod(tmp, 0o600)
+            os.link(tmp, path)  # fails if another writer made it first: then its key is read
+        except FileExistsError:
+            pass
+        except OSError:
+            return None
+        finally:
+            os.unlink(tmp)
+    return None
+
+
+def signature(secret, key, arrays):
+    """Keyed BLAKE2b of the entry's name and its arrays (names, dtypes, shapes and bytes)."""
+    h = hashlib.blake2b(key=secret, digest_size=32)
+    h.update(key.encode())
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"|{name}|{a.dtype.str}|{a.shape}|".encode())
+        if a.size:
+            h.update(memoryview(a).cast("B"))
+    return np.frombuffer(h.digest(), dtype=np.uint8)
+
+
+def cache_load(folder, key):
+    """The arrays of the entry ``key`` if it is o3dheat's own (its signature matches); None when
+    it is absent, unreadable or foreign (with a warning naming it)."""
+    path = entry_path(folder, key)
+    if not path.exists():
+        return None
+    try:
+        os.utime(path)  # used now: the last to be pruned
+    except OSError:
+        pass
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {name: z[name] for name in z.files}
+    except Exception as e:  # a corrupt cache file is ignored, never fatal
+        log.warning("ignoring unreadable cache file %s (%s)", path, e)
+        return None
+    stored = arrays.pop("signature", None)
+    secret = folder_key(folder, create=False)
+    if stored is None or secret is None or not hmac.compare_digest(
+            stored.tobytes(), signature(secret, key, arrays).tobytes()):
+        log.warning("the cached spectrum %s is not o3dheat's own write for this key (tampered or corrupt: "
+                    "its signature does not match): recomputing", path.name)
+        return None
+    return arrays
+
+
+def write_npz(path, arrays):
+    """Write ``arrays`` as an uncompressed ``.npz`` at ``path`` atomically (a temporary file in the
+    same folder, then renamed): a reader never sees a partial file."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem.split("-")[0] + "-", suffix=".npz.tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, path)
+        tmp = None
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def cache_save(folder, key, arrays, budget):
+    """Store ``arrays`` signed under ``key``, then prune the folder to ``budget`` bytes; a folder
+    that cannot be written gives a warning, never an error."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        secret = folder_key(folder, create=True)
+        if secret is None:
+            raise OSError(f"no readable key {KEY_FILE}")
+        write_npz(entry_path(folder, key), {**arrays, "signature": signature(secret, key, arrays)})
+        prune(folder, budget, keep=entry_path(folder, key))
+    except OSError as e:
+        log.warning("could not write the spectrum cache in %s (%s)", folder, e)
+
+
+def _ours(path):
+    """Whether ``path`` is an o3dheat cache entry: its name, and the members o3dheat writes."""
+    if not ENTRY.fullmatch(path.name):
+        return False
+    try:
+        with zipfile.ZipFile(path) as z:
+            return "eigenvectors.npy" in z.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return True  # o3dheat's name, unreadable content: a broken write of ours
+
+
+def prune(folder, budget, keep=None, stale_after=3600.0):
+    """Delete temporary files left by interrupted writes (older than an hour: a live writer is
+    faster), then the least recently used entries until o3dheat's entries hold at most ``budget``
+    bytes (``keep``, the entry just written, stays even when it alone exceeds the budget). Files
+    with other names are never touched."""
+    folder = Path(folder)
+    now = time.time()
+    files = []
+    for f in folder.glob("spectrum-*"):
+        try:
+            st = f.stat()
+        except OSError:
+            continue
+        if PARTIAL.fullmatch(f.name):
+            if now - st.st_mtime > stale_after:
+                try:
+                    f.unlink()
+                except OSError:
+                    pass
+        elif _ours(f):
+            files.append((st.st_mtime, st.st_size, f))
+    total = sum(size for _, size, _ in files)
+    for _, size, f in sorted(files):  # oldest use first
+        if total <= budget:
+            break
+        if f == keep:
+            continue
+        try:
+            f.unlink()
+            total -= size
+        except OSError:
+            pass
