@@ -180,3 +180,56 @@ def prune(folder, budget, keep=None, stale_after=3600.0):
             total -= size
         except OSError:
             pass
+
+
+FORMAT = "o3dheat-spectrum-1"
+_SPARSE = ("stiffness", "mass")
+_DENSE = ("eigenvalues", "eigenvectors", "areas", "residuals")
+
+
+def spectrum_arrays(s):
+    """The members of a :meth:`o3dheat.Spectrum.save` file (plain arrays, no pickles)."""
+    out = {"format": np.array(FORMAT), "mass_kind": np.array(s.mass_kind), "backend": np.array(s.backend),
+           "sigma": np.array(float(s.sigma))}
+    out.update({name: np.asarray(getattr(s, name), dtype=np.float64) for name in _DENSE})
+    for name in _SPARSE:
+        A = getattr(s, name).tocsc()
+        out.update({f"{name}_data": A.data, f"{name}_indices": A.indices, f"{name}_indptr": A.indptr,
+                    f"{name}_shape": np.array(A.shape, dtype=np.int64)})
+    if s.faces is not None:
+        out["faces"] = np.asarray(s.faces, dtype=np.int64)
+    if s.inverse_mass_bound is not None:
+        out["inverse_mass_bound"] = np.asarray(s.inverse_mass_bound, dtype=np.float64)
+    return out
+
+
+def read_spectrum(path):
+    """The fields of a :class:`o3dheat.Spectrum` from a :meth:`~o3dheat.Spectrum.save` file,
+    unchecked (the caller checks them); a MeshError when the file is not one."""
+    import scipy.sparse as sp
+
+    from .errors import MeshError
+
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            a = {name: z[name] for name in z.files}
+    except FileNotFoundError:
+        raise MeshError(f"no such file: {path}") from None
+    except Exception as e:
+        raise MeshError(f"{path} is not a readable .npz file ({e})") from None
+    if "format" not in a or str(a["format"]) != FORMAT:
+        raise MeshError(f"{path} is not a spectrum saved by o3dheat (Spectrum.save / o3dheat spectrum -o): "
+                        f"it has {', '.join(sorted(a)) or 'no arrays'}")
+    try:
+        fields = {name: np.asarray(a[name], dtype=np.float64) for name in _DENSE}
+        for name in _SPARSE:
+            fields[name] = sp.csc_matrix((a[f"{name}_data"], a[f"{name}_indices"], a[f"{name}_indptr"]),
+                                         shape=tuple(int(x) for x in a[f"{name}_shape"]))
+        fields.update(mass_kind=str(a["mass_kind"]), backend=str(a["backend"]), sigma=float(a["sigma"]),
+                      faces=a.get("faces"), inverse_mass_bound=a.get("inverse_mass_bound"))
+    except (KeyError, ValueError, TypeError, IndexError) as e:
+        raise MeshError(f"{path}: a broken spectrum file ({type(e).__name__}: {e})") from None
+    if fields["eigenvectors"].ndim != 2 or fields["eigenvalues"].ndim != 1:
+        raise MeshError(f"{path}: eigenvectors must be a matrix and eigenvalues a vector")
+    return fields

@@ -59,7 +59,10 @@ others; Ctrl-C keeps the finished outputs (exit status 130). Refused before any 
 status 2): a pattern matching nothing, two inputs with the same output name, an output that would
 replace an input. Default scheduler: a local Dask cluster, one worker per core.""",
     "spectrum": """examples:
-  o3dheat spectrum mesh.ply -k 200 -o spectrum.npz""",
+  o3dheat spectrum mesh.ply -k 200 -o spectrum.npz
+
+read it back in Python: o3dheat.Spectrum.load("spectrum.npz") (checked: eigenpairs of the stored
+operators, B-orthonormal, ascending).""",
     "study": """examples:
   o3dheat study study.toml --out results/                      # a local Dask cluster
   o3dheat study study.toml --out results/ --scheduler sequential
@@ -164,7 +167,8 @@ def _parser():
                    help="the mass B of L x = λ B x (o3dheat.fem.MASS_KINDS; default: %(default)s): "
                         + "; ".join(f"{name}: {text}" for name, text in fem.MASS_KINDS.items()))
     s.add_argument("-o", "--out", required=True,
-                   help="output .npz (eigenvalues, eigenvectors, residuals), in a folder that exists")
+                   help="output .npz, in a folder that exists: the whole spectrum (eigenpairs, operators, areas, "
+                        "faces, residuals), read back by o3dheat.Spectrum.load")
     s.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
     st = _sub(sub, "study", "robustness of descriptors across resamplings (a table and plots)")
     st.add_argument("config", help="study TOML file")
@@ -388,9 +392,7 @@ def _filters(args):
 
 
 def _spectrum(args):
-    import numpy as np
-
-    from .io import atomic_write, read_mesh
+    from .io import read_mesh
     from .spectrum import eigensolve
 
     out = Path(args.out)
@@ -400,8 +402,7 @@ def _spectrum(args):
     if args.k < 1:
         raise MeshError(f"-k must be at least 1, got {args.k}")
     s = eigensolve(read_mesh(args.input), k=args.k, mass=args.mass)
-    atomic_write(out, lambda fh: np.savez(fh, eigenvalues=s.eigenvalues, eigenvectors=s.eigenvectors,
-                                          residuals=s.residuals, mass=s.mass_kind, backend=s.backend))
+    s.save(out, overwrite=True)  # _check_output refused an existing file without --overwrite
     print(f"wrote {out}: {s.k} eigenpairs of {s.n} vertices, λ in [{s.eigenvalues[0]:.4g}, "
           f"{s.eigenvalues[-1]:.4g}], max residual {s.residuals.max():.1e} ({s.backend})")
 

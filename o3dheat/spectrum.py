@@ -142,9 +142,106 @@ class Spectrum:
         """
         return len(self.eigenvalues)
 
+    def save(self, path, overwrite=False):
+        """Write the spectrum to a self-contained ``.npz`` file: eigenpairs, operators, mass kind,
+        areas, faces, residuals and the inverse-mass bound (everything :meth:`load` needs to give
+        back an equal :class:`Spectrum`, without the mesh). Written atomically: an interrupted
+        write leaves no file and an existing file is never half-overwritten.
+
+        Parameters
+        ----------
+        path : str or Path
+            Ends in ``.npz``.
+        overwrite : bool
+            Replace an existing file (default: refuse).
+
+        Raises
+        ------
+        MeshError
+            Not ``.npz``, the file exists and ``overwrite`` is False, or the folder does not exist.
+
+        Examples
+        --------
+        >>> import os, tempfile, numpy as np, open3d as o3d, o3dheat
+        >>> s = o3dheat.eigensolve(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8), k=5)
+        >>> p = os.path.join(tempfile.mkdtemp(), "sphere.npz")
+        >>> s.save(p)
+        >>> t = o3dheat.Spectrum.load(p)
+        >>> bool(np.array_equal(t.eigenvectors, s.eigenvectors)), t.mass_kind
+        (True, 'consistent')
+        """
+        from .io import atomic_write
+
+        path = Path(path)
+        if path.suffix.lower() != ".npz":
+            raise MeshError(f"a spectrum is saved as .npz: {path}")
+        if path.exists() and not overwrite:
+            raise MeshError(f"{path} exists: pass overwrite=True to replace it")
+        atomic_write(path, lambda fh: np.savez(fh, **_spectrum_files.spectrum_arrays(self)))
+
+    @classmethod
+    def load(cls, path):
+        """Read a spectrum written by :meth:`save` (or ``o3dheat spectrum -o``), checked before it
+        is returned: consistent shapes, finite values, ascending eigenvalues ``>= 0``, eigenpairs of
+        the stored operators (residuals recomputed: at most ten times the stored ones, and 1e-2) and
+        B-orthonormal eigenvectors (``‖Xᵀ B X − I‖_max <= 1e-6``). That they are the *smallest*
+        eigenpairs is not checked (it needs a factorization): load only files you wrote.
+
+        Parameters
+        ----------
+        path : str or Path
+
+        Returns
+        -------
+        Spectrum
+            ``timings`` is ``{"cache": True}`` (nothing was computed).
+
+        Raises
+        ------
+        MeshError
+            Not a readable spectrum file, or one that fails a check (named in the message).
+
+        Examples
+        --------
+        See :meth:`save`.
+        """
+        fields = _spectrum_files.read_spectrum(path)
+        s = cls(**fields, timings={"cache": True})
+        _check_loaded(s, path)
+        return s
+
     def __repr__(self):
         return (f"Spectrum(n={self.n}, k={self.k}, mass={self.mass_kind!r}, backend={self.backend!r}, "
                 f"eigenvalues=[{self.eigenvalues[0]:.4g} .. {self.eigenvalues[-1]:.4g}])")
+
+
+def _check_loaded(s, path):
+    """The checks of :meth:`Spectrum.load` (a MeshError naming the first that fails)."""
+    lam, X, L, B = s.eigenvalues, s.eigenvectors, s.stiffness, s.mass
+    n, k = X.shape
+    shapes = {"stiffness": L.shape, "mass": B.shape}
+    for name, shape in shapes.items():
+        if shape != (n, n):
+            raise MeshError(f"{path}: {name} is {shape[0]} x {shape[1]}, the eigenvectors have {n} rows")
+    for name, a in (("eigenvalues", lam), ("residuals", s.residuals), ("areas", s.areas)):
+        if a.shape != ((k,) if name != "areas" else (n,)):
+            raise MeshError(f"{path}: {name} has shape {a.shape}")
+    if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(X)) and np.all(np.isfinite(L.data))
+            and np.all(np.isfinite(B.data))):
+        raise MeshError(f"{path}: non-finite values")
+    if np.any(np.diff(lam) < 0) or lam[0] < 0:
+        raise MeshError(f"{path}: the eigenvalues are not ascending and >= 0")
+    if s.faces is not None and (s.faces.ndim != 2 or s.faces.shape[1] != 3 or s.faces.size
+                                and (s.faces.min() < 0 or s.faces.max() >= n)):
+        raise MeshError(f"{path}: faces of shape {s.faces.shape} do not index the {n} vertices")
+    res = _residuals(L, B, lam, X)
+    if res.max() > 1e-2 or np.any(res > np.maximum(10 * s.residuals, 1e-12)):
+        raise MeshError(f"{path}: the eigenpairs do not solve L x = λ B x for the stored operators "
+                        f"(residual {res.max():.1e}, stored {s.residuals.max():.1e})")
+    G = X.T @ (B @ X)
+    G[np.diag_indices(k)] -= 1.0
+    if np.abs(G).max() > 1e-6:
+        raise MeshError(f"{path}: the eigenvectors are not B-orthonormal (|XᵀBX - I| = {np.abs(G).max():.1e})")
 
 
 def default_cache_dir():

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+import o3dheat
 from o3dheat.cli import main
 from o3dheat.demo import bumpy_torus, default_mesh, run
 from o3dheat.io import read_mesh
@@ -247,6 +248,11 @@ def test_cli_spectrum_and_figure(tmp_path, sphere_ply, capsys):
     assert main(["spectrum", str(sphere_ply), "-k", "9", "-o", str(spec)]) == 0
     with np.load(spec) as z:
         assert np.allclose(z["eigenvalues"][1:4], 2.0, rtol=0.05) and z["eigenvectors"].shape[1] == 9
+    # issue 22: the command's file has a loader, which gives back the spectrum of the mesh
+    loaded = o3dheat.Spectrum.load(spec)
+    direct = o3dheat.eigensolve(o3dheat.io.read_mesh(sphere_ply), k=9)
+    np.testing.assert_allclose(loaded.eigenvalues, direct.eigenvalues, rtol=1e-10)
+    assert (loaded.stiffness != direct.stiffness).nnz == 0 and loaded.faces.shape == direct.faces.shape
     assert main(["spectrum", str(sphere_ply), "-k", "9", "-o", str(spec)]) == 2  # exists
     assert main(["spectrum", str(sphere_ply), "-k", "0", "-o", str(tmp_path / "t.npz")]) == 2
     figs = tmp_path / "figs"

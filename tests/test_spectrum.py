@@ -570,3 +570,59 @@ def test_the_cache_reads_only_its_own_writes(tmp_path, irregular_mesh, caplog, m
         monkeypatch.setenv("O3DHEAT_CACHE_MAX_MB", bad)
         with pytest.raises(o3dheat.MeshError, match="O3DHEAT_CACHE_MAX_MB must be a number of megabytes >= 0"):
             S.cache_max_bytes()
+
+
+def test_save_and_load_give_back_the_spectrum_and_refuse_what_is_not_one(tmp_path, irregular_mesh):
+    """Issue 22: a saved spectrum had no loader. Spectrum.save writes everything (operators, areas,
+    faces, bounds); Spectrum.load checks it before returning it."""
+    import dataclasses
+
+    V, F = irregular_mesh
+    V2 = np.vstack([V, [[9.0, 9.0, 9.0]]])  # an unreferenced vertex: expanded operators round-trip too
+    s = o3dheat.eigensolve((V2, F), k=8, cache=False)
+    p = tmp_path / "s.npz"
+    s.save(p)
+    t = o3dheat.Spectrum.load(p)
+    for f in dataclasses.fields(s):
+        a, b = getattr(s, f.name), getattr(t, f.name)
+        if f.name == "timings":
+            assert b == {"cache": True}
+        elif hasattr(a, "nnz"):
+            assert a.shape == b.shape and (a != b).nnz == 0
+        elif isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(a, b)
+        elif isinstance(a, float) and np.isnan(a):
+            assert np.isnan(b)
+        else:
+            assert a == b, f.name
+    # the loaded spectrum works like the computed one
+    f = V2[:, 2]
+    np.testing.assert_allclose(o3dheat.HeatKernel(t).smooth(f, 0.01), o3dheat.HeatKernel(s).smooth(f, 0.01))
+    with pytest.raises(o3dheat.MeshError, match="exists: pass overwrite=True"):
+        s.save(p)
+    s.save(p, overwrite=True)
+    with pytest.raises(o3dheat.MeshError, match="saved as .npz"):
+        s.save(tmp_path / "s.txt")
+    # crafted or foreign files: named refusals
+    with np.load(p) as z:
+        data = dict(z)
+    bad = {
+        "copies of one eigenvector": dict(data, eigenvectors=np.repeat(data["eigenvectors"][:, 1:2], 8, axis=1),
+                                          eigenvalues=np.full(8, data["eigenvalues"][1])),
+        "do not solve": dict(data, eigenvalues=data["eigenvalues"] * 1.01),
+        "not ascending": dict(data, eigenvalues=data["eigenvalues"][::-1]),
+        "non-finite": dict(data, eigenvectors=np.where(data["eigenvectors"] > 0.5, np.nan, data["eigenvectors"])),
+        "not a spectrum saved by o3dheat": {"eigenvalues": data["eigenvalues"]},
+        "broken spectrum file": {k: v for k, v in data.items() if k != "mass_indptr"},
+    }
+    patterns = {"copies of one eigenvector": "not B-orthonormal|do not solve"}
+    for name, d in bad.items():
+        q = tmp_path / "bad.npz"
+        np.savez(q, **d)
+        with pytest.raises(o3dheat.MeshError, match=patterns.get(name, name)):
+            o3dheat.Spectrum.load(q)
+    (tmp_path / "junk.npz").write_bytes(b"junk")
+    with pytest.raises(o3dheat.MeshError, match="not a readable .npz"):
+        o3dheat.Spectrum.load(tmp_path / "junk.npz")
+    with pytest.raises(o3dheat.MeshError, match="no such file"):
+        o3dheat.Spectrum.load(tmp_path / "absent.npz")
