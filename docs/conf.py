@@ -18,6 +18,7 @@ release = version = o3dheat.__version__
 extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.mathjax",
+    "sphinx-mathjax-offline",       # MathJax 3 copied into _static/mathjax: formulas render offline
     "numpydoc",
     "cli_reference",                # docs/_ext: the command reference from its parser
     "sphinx_gallery.gen_gallery",
@@ -67,6 +68,9 @@ html_theme_options = {
     "footer_end": [],
 }
 html_static_path = []
+# The formulas' MathJax is served from the site itself (sphinx-mathjax-offline sets mathjax_path
+# to _static/mathjax/tex-chtml.js and copies it there): Sphinx's default is a CDN URL, and a site
+# read offline (this one is built and read without network) then shows raw TeX.
 html_show_sourcelink = False
 html_copy_source = False
 
@@ -100,5 +104,32 @@ def _undocumented_data(app, docname, source):
         source[0] += "\n" + "".join(entries)
 
 
+def _section(env, pagename):
+    """The top-level section (a page of the root toctree) that ``pagename`` belongs to, or None
+    (the root page itself, or a page outside the toctrees: genindex, search)."""
+    root = env.config.root_doc
+    parent = {child: doc for doc, children in env.toctree_includes.items() for child in children}
+    page, seen = pagename, set()
+    while page in parent and page not in seen:
+        seen.add(page)
+        if parent[page] == root:
+            return page
+        page = parent[page]
+    return None
+
+
+def _hide_empty_navigation(app, pagename, templatename, context, doctree):
+    """No primary sidebar on a page whose section has no sub-pages (install, conventions, paper,
+    cli): pydata's "Section Navigation" lists a section's sub-pages, and these sections have none,
+    so it showed an empty column (the theme drops it by itself on the root page only: with
+    ``sidebar_includehidden`` on, its default, it does not look whether a section has sub-pages).
+    An empty ``sidebars`` makes the theme hide the column on wide screens (it keeps it for the
+    header's links on narrow ones)."""
+    section = _section(app.env, pagename)
+    if section is not None and not app.env.toctree_includes.get(section):
+        context["sidebars"] = []
+
+
 def setup(app):
     app.connect("source-read", _undocumented_data)
+    app.connect("html-page-context", _hide_empty_navigation)

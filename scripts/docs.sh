@@ -19,7 +19,8 @@ PY
 )
 stamp=.venv/.o3dheat-docs
 if ! { [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] &&
-       "$py" -c 'import sphinx, numpydoc, sphinx_gallery, pydata_sphinx_theme, myst_parser' 2>/dev/null; }; then
+       "$py" -c 'import importlib, sphinx, numpydoc, sphinx_gallery, pydata_sphinx_theme, myst_parser
+importlib.import_module("sphinx-mathjax-offline")  # MathJax served by the site (its name has dashes)' 2>/dev/null; }; then
   printf '[docs] installing the docs extra into .venv\n' >&2
   deps=$("$py" - <<'PY'
 import re
