@@ -16,7 +16,7 @@ import numpy as np
 
 from o3dheat import heatflow, kernel
 from o3dheat.errors import MeshError
-from o3dheat.filters import OneOf
+from o3dheat.filters import OneOf, check_parameters, param
 
 #: how point clouds get operators (``operators=`` of the filters)
 OPERATORS = ("reconstruct", "robust")
@@ -29,6 +29,101 @@ HksForm = Literal[kernel.HKS_FORMS]
 Normalization = Literal[kernel.NORMALIZATIONS]
 Operators = Literal[OPERATORS]
 Method = Literal[heatflow.METHODS]
+
+#: the bounds of the parameters several filters share (:func:`o3dheat.filters.param`), declared once:
+#: ``k: int = eigenpairs()`` ...
+MAX_SCALES = 100_000  # as o3dheat.kernel's scales
+
+
+def eigenpairs(default=100):
+    """``k``: eigenpairs, at least 1 (more than the mesh has are capped, with a warning).
+
+    Examples
+    --------
+    >>> from o3dheat_filters._common import eigenpairs
+    >>> eigenpairs().metadata["o3dheat.limits"].ge
+    1
+    """
+    return param(default, ge=1)
+
+
+def scale_count(default=10):
+    """``scales``: how many times of a grid, 1 to :data:`MAX_SCALES`.
+
+    Examples
+    --------
+    >>> from o3dheat_filters._common import scale_count
+    >>> str(scale_count().metadata["o3dheat.limits"])
+    'in [1, 100000]'
+    """
+    return param(default, ge=1, le=MAX_SCALES)
+
+
+def time_list():
+    """``times``: None (the default grid) or at least one time, each >= 0 (finite: a float).
+
+    Examples
+    --------
+    >>> from o3dheat_filters._common import time_list
+    >>> str(time_list().metadata["o3dheat.limits"])
+    '>= 0, at least 1 value'
+    """
+    return param(None, ge=0, min_len=1)
+
+
+def tolerance(default=1e-8):
+    """``tol``: a relative tolerance in (0, 1) (:func:`o3dheat.checks.tolerance`).
+
+    Examples
+    --------
+    >>> from o3dheat_filters._common import tolerance
+    >>> str(tolerance().metadata["o3dheat.limits"])
+    'in (0, 1)'
+    """
+    return param(default, gt=0, lt=1)
+
+
+def persistence():
+    """``delta``: a persistence threshold in the field's units, >= 0 (None: not given).
+
+    Examples
+    --------
+    >>> from o3dheat_filters._common import persistence
+    >>> str(persistence().metadata["o3dheat.limits"])
+    '>= 0'
+    """
+    return param(None, ge=0)
+
+
+def fraction():
+    """``keep_fraction``: a fraction in [0, 1] (None: not given), as
+    :func:`o3dheat.simplify_critical_points` takes it.
+
+    Examples
+    --------
+    >>> from o3dheat_filters._common import fraction
+    >>> str(fraction().metadata["o3dheat.limits"])
+    'in [0, 1]'
+    """
+    return param(None, ge=0, le=1)
+
+
+def checked(step):
+    """At construction (``__post_init__``): every parameter of a built-in filter checked against its
+    type and bounds (:func:`o3dheat.filters.check_parameters`) and stored converted, so that a
+    filter made directly is refused as one made by name, before any work.
+
+    Examples
+    --------
+    >>> from o3dheat_filters.hks import Hks
+    >>> Hks(k=20.0)
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: hks.k must be an integer, got 20.0
+    """
+    for name, value in check_parameters(step).items():
+        if value is not getattr(step, name):
+            object.__setattr__(step, name, value)  # frozen: the documented way in __post_init__
 
 
 class Site:

@@ -8,9 +8,9 @@ import numpy as np
 
 from o3dheat.errors import MeshError
 
-from o3dheat.filters import check_column, need_attribute
+from o3dheat.filters import check_column, need_attribute, param
 
-from ._common import Site
+from ._common import Site, checked
 
 
 def _colormap(name):
@@ -57,13 +57,14 @@ class Colorize:
     attribute: str = "height"
     column: int | None = None
     colormap: str = "coolwarm"
-    range: tuple[float, ...] | None = None
+    range: tuple[float, ...] | None = param(None, min_len=2, max_len=2)
     output: str = "colors"
 
     outputs = ("colors",)
 
     def __post_init__(self):
-        if self.range is not None and (len(self.range) != 2 or not self.range[0] < self.range[1]):
+        checked(self)
+        if self.range is not None and not self.range[0] < self.range[1]:
             raise MeshError(f"range must be two increasing numbers, got {self.range}")
 
     def plan(self, columns):

@@ -9,7 +9,7 @@ import numpy as np
 from o3dheat.errors import MeshError
 from o3dheat.filters import check_column, need_attribute
 
-from ._common import Operators, Site
+from ._common import Operators, Site, checked, fraction, persistence
 
 
 @dataclass(frozen=True)
@@ -28,9 +28,9 @@ class CriticalPointsFilter:
         listing the columns (the rule of every filter and of ``o3dheat figure --column``).
     delta : float or None
         Keep only the critical points of the δ-simplification (persistence >= delta, units of
-        the field) and the essential ones; the others are labelled 0.
+        the field, >= 0) and the essential ones; the others are labelled 0.
     keep_fraction : float or None
-        Alternative to delta: the most persistent fraction of the pairs.
+        Alternative to delta: the most persistent fraction of the pairs, in [0, 1].
     output : str or None
         Default "<attribute>_critical".
     operators : {"reconstruct", "robust"}
@@ -46,14 +46,15 @@ class CriticalPointsFilter:
 
     attribute: str = "height"
     column: int | None = None
-    delta: float | None = None
-    keep_fraction: float | None = None
+    delta: float | None = persistence()
+    keep_fraction: float | None = fraction()
     output: str | None = None
     operators: Operators = "reconstruct"
 
     outputs = ("<attribute>_critical",)
 
     def __post_init__(self):
+        checked(self)
         if self.delta is not None and self.keep_fraction is not None:
             raise MeshError("give delta or keep_fraction, not both")
 

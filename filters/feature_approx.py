@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from o3dheat import checks
 from o3dheat.errors import MeshError
-from o3dheat.filters import check_column, need_attribute
+from o3dheat.filters import check_column, need_attribute, param
 from o3dheat.kernel import mass_of
 
-from ._common import Method, Operators, Site, Variant, kernel_of, smoother
+from ._common import (Method, Operators, Site, Variant, checked, eigenpairs, fraction, kernel_of, persistence,
+                      smoother, tolerance)
 
 
 @dataclass(frozen=True)
@@ -29,16 +29,17 @@ class FeatureApprox:
     scale : int
         Which of the paper's 10 scales, 1..10 (when ``t`` is not given).
     t : float or None
-        Time (paper convention).
+        Time (paper convention), >= 0.
     delta : float or None
-        Persistence threshold of the δ-simplification (units of f).
+        Persistence threshold of the δ-simplification (units of f, >= 0).
     keep_fraction : float or None
-        Alternative to delta. With neither, every critical point is a feature.
+        Alternative to delta, in [0, 1]. With neither, every critical point is a feature.
     variant : str
         The kernel, a key of :data:`o3dheat.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
     k : int
-        Eigenpairs of the spectral method; with "exact" they only place the default scale.
+        Eigenpairs of the spectral method (>= 1; capped at what the mesh has, with a warning); with
+        "exact" they only place the default scale.
     method : str
         One of :data:`o3dheat.heatflow.METHODS`: "spectral" (the paper's truncated kernel, the
         default) or "exact" (the full kernel, to ``tol``); see the ``heat_smooth`` filter.
@@ -59,27 +60,23 @@ class FeatureApprox:
 
     attribute: str = "height"
     column: int | None = None
-    scale: int = 1
-    t: float | None = None
-    delta: float | None = None
-    keep_fraction: float | None = None
+    scale: int = param(1, ge=1, le=10)
+    t: float | None = param(None, ge=0)
+    delta: float | None = persistence()
+    keep_fraction: float | None = fraction()
     variant: Variant = "weighted"
-    k: int = 100
+    k: int = eigenpairs()
     method: Method = "spectral"
-    tol: float = 1e-8
+    tol: float = tolerance()
     operators: Operators = "reconstruct"
 
     outputs = ("<attribute>_glob", "<attribute>_loc")
 
     def __post_init__(self):
-        if not 1 <= self.scale <= 10:
-            raise MeshError(f"scale must be 1..10, got {self.scale}")
-        if self.t is not None and self.t < 0:
-            raise MeshError("t must be >= 0")
+        checked(self)
         if self.delta is not None and self.keep_fraction is not None:
             raise MeshError("give delta or keep_fraction, not both")
         mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
-        checks.tolerance(self.tol)
 
     def plan(self, columns):
         """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).

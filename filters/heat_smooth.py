@@ -4,13 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from o3dheat import checks
 from o3dheat.errors import MeshError
 from o3dheat.filters import check_column, need_attribute
 from o3dheat.kernel import mass_of
 
-from ._common import (Grid, Method, Normalization, Operators, Site, Variant, kernel_of, smoother,
-                      time_count, times_of)
+from ._common import (Grid, Method, Normalization, Operators, Site, Variant, checked, eigenpairs, kernel_of,
+                      scale_count, smoother, time_count, time_list, times_of, tolerance)
 
 
 @dataclass(frozen=True)
@@ -29,9 +28,10 @@ class HeatSmooth:
         last). Needed to smooth a multi-column attribute at several times: without it the filter
         refuses, listing the columns (the rule of every filter and of ``o3dheat figure --column``).
     times : list of float or None
-        Times (paper convention ``exp(−λ t / 2)``). Default: the paper's ``scales``.
+        Times (paper convention ``exp(−λ t / 2)``), at least one, each >= 0. Default (None): the
+        paper's ``scales``.
     scales : int
-        Number of scales of ``grid`` when ``times`` is not given.
+        Number of scales of ``grid`` when ``times`` is not given (1 to 100000).
     grid : str
         One of :data:`o3dheat.kernel.GRIDS`. "paper": ``t_i = (i / scales) / λ_k``; "log": from
         ``1/λ_k`` to ``2 ln(100)/λ_2`` (the whole range, to nearly constant). See
@@ -42,7 +42,8 @@ class HeatSmooth:
     normalize : None or str
         One of :data:`o3dheat.kernel.NORMALIZATIONS`; "lambda2": the scale-invariant kernel.
     k : int
-        Eigenpairs of the spectral method; with "exact" they only place the default scales.
+        Eigenpairs of the spectral method (>= 1; capped at what the mesh has, with a warning); with
+        "exact" they only place the default scales.
     method : str
         One of :data:`o3dheat.heatflow.METHODS`. "spectral" (the default, the paper's
         computation): the truncated kernel on k eigenpairs, which is band-limited, so that ``k``
@@ -70,26 +71,22 @@ class HeatSmooth:
 
     attribute: str = "height"
     column: int | None = None
-    times: tuple[float, ...] | None = None
-    scales: int = 10
+    times: tuple[float, ...] | None = time_list()
+    scales: int = scale_count()
     grid: Grid = "paper"
     variant: Variant = "weighted"
     normalize: Normalization = None
-    k: int = 100
+    k: int = eigenpairs()
     method: Method = "spectral"
-    tol: float = 1e-8
+    tol: float = tolerance()
     output: str | None = None
     operators: Operators = "reconstruct"
 
     outputs = ("<attribute>_smooth",)
 
     def __post_init__(self):
-        if self.k < 1 or self.scales < 1:
-            raise MeshError("k and scales must be positive")
+        checked(self)
         mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
-        checks.tolerance(self.tol)
-        if self.times is not None and any(t < 0 for t in self.times):
-            raise MeshError("times must be >= 0")
 
     def _columns_out(self, c):
         """Columns of the output for an input of ``c`` columns (after ``column``); the refusal of

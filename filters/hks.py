@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from o3dheat.errors import MeshError
 from o3dheat.kernel import HKS_DEFAULT, mass_of
 
-from ._common import Grid, HksForm, Normalization, Operators, Site, Variant, kernel_of, time_count, times_of
+from ._common import (Grid, HksForm, Normalization, Operators, Site, Variant, checked, eigenpairs, kernel_of,
+                      scale_count, time_count, time_list, times_of)
 
 
 @dataclass(frozen=True)
@@ -17,11 +17,12 @@ class Hks:
     Parameters
     ----------
     scales : int
-        Number of scales of ``grid`` when ``times`` is not given.
+        Number of scales of ``grid`` when ``times`` is not given (1 to 100000).
     grid : str
         The scale grid, one of :data:`o3dheat.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales`).
     times : list of float or None
-        Times (paper convention ``exp(−λ t / 2)``).
+        Times (paper convention ``exp(−λ t / 2)``), at least one, each >= 0; None: ``scales``
+        times of ``grid``.
     form : str
         One of :data:`o3dheat.kernel.HKS_FORMS`: "density" (the default everywhere,
         :data:`o3dheat.kernel.HKS_DEFAULT`): ``Σ e^{−λt/2} x(i)²`` (the usual HKS, stable across
@@ -32,7 +33,7 @@ class Hks:
     normalize : None or str
         One of :data:`o3dheat.kernel.NORMALIZATIONS`; "lambda2": scale-invariant eigenvalues.
     k : int
-        Eigenpairs.
+        Eigenpairs (>= 1; capped at what the mesh has, with a warning).
     output : str
         Attribute name.
     operators : {"reconstruct", "robust"}
@@ -46,21 +47,20 @@ class Hks:
     SizeVector[182, 4]
     """
 
-    scales: int = 10
-    times: tuple[float, ...] | None = None
+    scales: int = scale_count()
+    times: tuple[float, ...] | None = time_list()
     grid: Grid = "paper"
     form: HksForm = HKS_DEFAULT
     variant: Variant = "weighted"
     normalize: Normalization = None
-    k: int = 100
+    k: int = eigenpairs()
     output: str = "hks"
     operators: Operators = "reconstruct"
 
     outputs = ("hks",)
 
     def __post_init__(self):
-        if self.k < 1 or self.scales < 1:
-            raise MeshError("k and scales must be positive")
+        checked(self)
         mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
 
     def plan(self, columns):

@@ -8,9 +8,9 @@ from typing import Literal
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.filters import need_attribute
+from o3dheat.filters import need_attribute, param
 
-from ._common import Operators, Site
+from ._common import Operators, Site, checked
 
 
 @dataclass(frozen=True)
@@ -28,9 +28,9 @@ class Scalar:
     attribute : str or None
         The attribute to perturb (noise).
     sigma : float
-        Standard deviation of the noise relative to the attribute's range (max − min).
+        Standard deviation of the noise relative to the attribute's range (max − min), >= 0.
     seed : int
-        Seed of the noise.
+        Seed of the noise, >= 0 (numpy's generators take no negative seed).
     output : str or None
         Name of the new attribute; default the kind ("height", "mean_curvature",
         "gaussian_curvature") or "<attribute>_noisy".
@@ -46,20 +46,17 @@ class Scalar:
     """
 
     kind: Literal["height", "mean_curvature", "gaussian_curvature", "noise"] = "height"
-    axis: int = 2
+    axis: int = param(2, ge=0, le=2)
     attribute: str | None = None
-    sigma: float = 0.05
-    seed: int = 0
+    sigma: float = param(0.05, ge=0)
+    seed: int = param(0, ge=0)
     output: str | None = None
     operators: Operators = "reconstruct"
 
     outputs = ("<output>",)
 
     def __post_init__(self):
-        if self.axis not in (0, 1, 2):
-            raise MeshError(f"axis must be 0, 1 or 2, got {self.axis}")
-        if self.sigma < 0:
-            raise MeshError(f"sigma must be >= 0, got {self.sigma}")
+        checked(self)
         if self.kind == "noise" and not self.attribute:
             raise MeshError("kind='noise' needs attribute= (the field to perturb)")
 

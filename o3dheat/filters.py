@@ -40,9 +40,9 @@ import numpy as np
 
 from .errors import MeshError
 
-__all__ = ["GROUP", "names", "describe", "get", "apply", "Chain", "Parameter", "OneOf", "shared_spectrum",
-           "set_disk_cache", "parse_value", "refresh", "one_column", "check_column", "attribute_columns",
-           "need_attribute", "check_writable", "PROTECTED", "plain_text"]
+__all__ = ["GROUP", "names", "describe", "get", "apply", "Chain", "Parameter", "OneOf", "Limits", "param",
+           "check_parameters", "shared_spectrum", "set_disk_cache", "parse_value", "refresh", "one_column",
+           "check_column", "attribute_columns", "need_attribute", "check_writable", "PROTECTED", "plain_text"]
 
 GROUP = "o3dheat.filters"
 
@@ -114,17 +114,19 @@ class Parameter:
     --------
     >>> import o3dheat.filters as flt
     >>> p = flt.describe("hks")["parameters"][0]
-    >>> p.name, p.type, p.default
-    ('scales', 'int', 10)
+    >>> p.name, p.type, p.default, p.limits
+    ('scales', 'int', 10, 'in [1, 100000]')
     """
 
     name: str
     type: str
     default: typing.Any
     help: str
+    limits: str = ""
 
     def __str__(self):
-        return f"{self.name} ({self.type}, default {self.default!r}): {self.help}"
+        limits = f", {self.limits}" if self.limits else ""
+        return f"{self.name} ({self.type}{limits}, default {self.default!r}): {self.help}"
 
 
 def _doc_params(doc):
@@ -208,6 +210,134 @@ class OneOf:
         return "OneOf(" + ", ".join(map(repr, self.choices())) + ")"
 
 
+_LIMITS = "o3dheat.limits"  # the key of a dataclass field's metadata that holds its Limits
+
+
+@dataclasses.dataclass(frozen=True)
+class Limits:
+    """The bounds of a filter parameter, declared with it (:func:`param`) and checked with its type
+    wherever a value comes in: :func:`get` (so :meth:`Chain.load`, the command's ``-f``),
+    :meth:`Chain.append` and :meth:`Chain.check` (instances made directly), and the built-in
+    filters' construction: always before any work.
+
+    Numbers (a number, or each item of a list) must satisfy ``ge <= x``, ``gt < x``, ``x <= le``,
+    ``x < lt`` (those given); lists must hold ``min_len`` to ``max_len`` items. None (a parameter's
+    "not given") is not checked.
+
+    Examples
+    --------
+    >>> from o3dheat.filters import Limits
+    >>> str(Limits(gt=0, le=1)), str(Limits(ge=0, min_len=1))
+    ('in (0, 1]', '>= 0, at least 1 value')
+    >>> Limits(gt=0, le=1).check(0.0, "f.keep_fraction")
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: f.keep_fraction must be in (0, 1], got 0.0
+    """
+
+    ge: float | None = None
+    gt: float | None = None
+    le: float | None = None
+    lt: float | None = None
+    min_len: int | None = None
+    max_len: int | None = None
+
+    def _numbers(self):
+        lo = f"[{self.ge:g}" if self.ge is not None else f"({self.gt:g}" if self.gt is not None else None
+        hi = f"{self.le:g}]" if self.le is not None else f"{self.lt:g})" if self.lt is not None else None
+        if lo and hi:
+            return f"in {lo}, {hi}"
+        if lo:
+            return (">= " if lo[0] == "[" else "> ") + lo[1:]
+        if hi:
+            return ("<= " if hi[-1] == "]" else "< ") + hi[:-1]
+        return ""
+
+    def _length(self):
+        lo, hi = self.min_len, self.max_len
+        if lo is None and hi is None:
+            return ""
+        plural = (lambda c: f"{c} value" + ("" if c == 1 else "s"))
+        if lo == hi:
+            return f"exactly {plural(lo)}"
+        if hi is None:
+            return f"at least {plural(lo)}"
+        if lo is None:
+            return f"at most {plural(hi)}"
+        return f"{lo} to {plural(hi)}"
+
+    def __str__(self):
+        return ", ".join(t for t in (self._numbers(), self._length()) if t)
+
+    def _number_ok(self, x):
+        return ((self.ge is None or x >= self.ge) and (self.gt is None or x > self.gt)
+                and (self.le is None or x <= self.le) and (self.lt is None or x < self.lt))
+
+    def check(self, value, where):
+        """``value`` (already of the parameter's type) within the bounds, else a MeshError naming
+        ``where`` and the bounds.
+
+        Examples
+        --------
+        >>> from o3dheat.filters import Limits
+        >>> Limits(ge=0, min_len=1).check((0.1, 2.0), "hks.times")
+        >>> Limits(ge=0, min_len=1).check((), "hks.times")
+        Traceback (most recent call last):
+        ...
+        o3dheat.errors.MeshError: hks.times must have at least 1 value (None for the default), got ()
+        """
+        if value is None:
+            return
+        if isinstance(value, (tuple, list)):
+            n = len(value)
+            if (self.min_len is not None and n < self.min_len) or (self.max_len is not None and n > self.max_len):
+                default = " (None for the default)" if self.min_len and not n else ""
+                raise MeshError(f"{where} must have {self._length()}{default}, got {value!r}")
+            items = value
+        else:
+            items = (value,)
+        for x in items:
+            if isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool) \
+                    and not self._number_ok(x):
+                which = "" if items is not value else " (every value)"
+                raise MeshError(f"{where} must be {self._numbers()}{which}, got {value!r}")
+
+    @staticmethod
+    def of(field):
+        """The :class:`Limits` a dataclass field was declared with (:func:`param`), else None.
+
+        Examples
+        --------
+        >>> import dataclasses, o3dheat.filters as flt
+        >>> [str(flt.Limits.of(f)) for f in dataclasses.fields(flt.get("hks")) if f.name == "k"]
+        ['>= 1']
+        """
+        return field.metadata.get(_LIMITS) if field.metadata else None
+
+
+def param(default=None, **limits):
+    """A filter parameter with bounds: ``delta: float | None = param(None, ge=0)``, a dataclass field
+    whose metadata holds its :class:`Limits` (``ge``, ``gt``, ``le``, ``lt``, ``min_len``,
+    ``max_len``), listed by :func:`describe` and checked before any work (see :class:`Limits`).
+
+    Examples
+    --------
+    >>> import dataclasses
+    >>> from o3dheat.filters import param
+    >>> @dataclasses.dataclass(frozen=True)
+    ... class Blur:
+    ...     sigma: float = param(1.0, gt=0)
+    ...     def __call__(self, mesh):
+    ...         return mesh
+    >>> import o3dheat.filters as flt
+    >>> flt.check_parameters(Blur(sigma=-1.0))
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: Blur.sigma must be > 0, got -1.0
+    """
+    return dataclasses.field(default=default, metadata={_LIMITS: Limits(**limits)})
+
+
 def _type_text(tp):
     if tp in (int, float, str, bool):
         return tp.__name__
@@ -218,7 +348,13 @@ def _type_text(tp):
 
 
 def _hints(cls):
-    return typing.get_type_hints(cls, globalns=vars(sys.modules[cls.__module__]), include_extras=True)
+    """The parameters' annotations, each resolved in the module of the class that declares it (a
+    plugin's subclass of a built-in filter keeps the built-in's types); {} when they cannot be
+    resolved (names local to a function): the values are then taken as they are."""
+    try:
+        return typing.get_type_hints(cls, include_extras=True)
+    except Exception:
+        return {}
 
 
 def describe(name):
@@ -230,7 +366,7 @@ def describe(name):
         ``name``, ``summary`` (the docstring's first paragraph on one line, as plain text:
         :func:`plain_text`), ``doc`` (whole docstring, as written), ``outputs`` (attribute names
         it writes, when declared) and ``parameters`` (list of :class:`Parameter`, their help as
-        plain text).
+        plain text, their bounds as declared with :func:`param`).
 
     Examples
     --------
@@ -248,8 +384,9 @@ def describe(name):
     for f in dataclasses.fields(cls):
         default = f.default if f.default is not dataclasses.MISSING else (
             f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+        limits = Limits.of(f)
         params.append(Parameter(f.name, _type_text(hints.get(f.name, typing.Any)), default,
-                                plain_text(helps.get(f.name, ""))))
+                                plain_text(helps.get(f.name, "")), str(limits) if limits else ""))
     summary = plain_text(re.split(r"\n\s*\n", doc.strip(), maxsplit=1)[0]) if doc.strip() else ""
     return {"name": name, "summary": summary, "doc": doc, "parameters": params,
             "outputs": getattr(cls, "outputs", None)}
@@ -592,11 +729,49 @@ def get(name, **params):
     if unknown:
         raise MeshError(f"filter {name!r} has no parameter {', '.join(map(repr, unknown))}; "
                         f"its parameters: {', '.join(fields)}")
-    checked = {k: _check(hints.get(k, typing.Any), v, f"{name}.{k}") for k, v in params.items()}
+    checked = {k: _check_field(fields[k], hints, v, f"{name}.{k}") for k, v in params.items()}
     try:
         return cls(**checked)
     except TypeError as e:
         raise MeshError(f"filter {name!r}: {e}") from e
+
+
+def _check_field(field, hints, value, where):
+    """A parameter's value checked against its annotation (:func:`_check`), then its bounds."""
+    value = _check(hints.get(field.name, typing.Any), value, where)
+    limits = Limits.of(field)
+    if limits is not None:
+        limits.check(value, where)
+    return value
+
+
+def check_parameters(step):
+    """Every parameter of a filter instance checked against its type and bounds (:func:`param`),
+    as :func:`get` checks the ones it is given: the values, converted where lossless (an int for
+    a float, a list for a tuple), by name. :meth:`Chain.append` and :meth:`Chain.check` run it on
+    every step (a filter made directly, not by name, is checked too), and the built-in filters at
+    construction.
+
+    Returns
+    -------
+    dict
+        Parameter name -> value.
+
+    Raises
+    ------
+    MeshError
+        ``<filter>.<parameter> must be ..., got ...``.
+
+    Examples
+    --------
+    >>> import o3dheat.filters as flt
+    >>> flt.check_parameters(flt.get("colorize", attribute="hks", column=3))["column"]
+    3
+    """
+    cls = type(step)
+    hints, name = _hints(cls), _name_of(step)
+    return {f.name: _check_field(f, hints, getattr(step, f.name), f"{name}.{f.name}")
+            for f in dataclasses.fields(cls) if f.init}
 
 
 def apply(mesh, name, **params):
@@ -663,6 +838,8 @@ class Chain:
             step = get(step[0], **dict(step[1]))
         elif not (dataclasses.is_dataclass(step) and callable(step)):
             raise MeshError(f"a chain step must be a filter or (name, params), got {step!r}")
+        else:
+            check_parameters(step)  # made directly: its parameters were not checked by get
         self.steps.append(step)
         return self
 
@@ -695,9 +872,10 @@ class Chain:
         return mesh
 
     def check(self, geometry):
-        """Check the chain against a geometry's attributes before any work: a step that reads an
-        attribute the steps before it do not make, or a column it does not have, is refused at
-        once (not after an eigensolve of a million vertices, or of every file of a batch).
+        """Check the chain against a geometry's attributes before any work: a parameter out of its
+        type or bounds (:func:`check_parameters`, every step), a step that reads an attribute the
+        steps before it do not make, or a column it does not have, is refused at once (not after
+        an eigensolve of a million vertices, or of every file of a batch).
 
         Each filter with a ``plan(columns)`` method takes the attributes' column counts
         (:func:`attribute_columns`), raises the MeshError its run would raise, and returns the
@@ -729,6 +907,11 @@ class Chain:
         ...
         o3dheat.errors.MeshError: step 2 (colorize): attribute 'hks' has 10 columns (0..9): pick one with column=N (0 is the first, -1 the last)
         """
+        for i, step in enumerate(self.steps):  # every step's parameters, planned or not
+            try:
+                check_parameters(step)
+            except MeshError as e:
+                raise MeshError(f"step {i + 1} ({_name_of(step)}): {e}") from None
         columns = attribute_columns(geometry)
         for i, step in enumerate(self.steps):
             plan = _plan_of(step)

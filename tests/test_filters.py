@@ -153,7 +153,7 @@ def test_the_exact_method_is_the_full_kernel(sphere, monkeypatch):
 
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("an eigensolve ran"))
     for bad, match in (({"method": "fast"}, "method must be one of 'spectral', 'exact'"),
-                       ({"method": "exact", "tol": 0.0}, r"tol must be a number in \(0, 1\)")):
+                       ({"method": "exact", "tol": 0.0}, r"heat_smooth.tol must be in \(0, 1\), got 0.0")):
         with pytest.raises(MeshError, match=match):
             flt.Chain([("heat_smooth", {"attribute": "f", **bad})])(m)
 
@@ -623,3 +623,69 @@ def test_chain_map_needs_an_output_folder(tmp_path):
     for bad in (None, 3, ""):
         with pytest.raises(MeshError, match=r"Chain.map: out_dir must be the output folder.*got " + re.escape(repr(bad))):
             chain.map(tmp_path / "*.ply", bad, scheduler="sequential")
+
+
+def test_parameters_are_checked_before_any_work(monkeypatch):
+    """critical_points' delta/keep_fraction were checked by the persistence code, after the
+    eigensolve of the steps before it: a batch computed every file, then failed each."""
+    import dataclasses
+
+    from o3dheat import spectrum
+    from o3dheat_filters.critical_points import CriticalPointsFilter
+
+    calls = []
+    monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: calls.append(1) or pytest.fail("eigensolve ran"))
+    smooth = [("scalar", {"kind": "height"}), ("heat_smooth", {"attribute": "height", "k": 10, "scales": 2})]
+    for bad, match in (({"delta": -1}, r"critical_points.delta must be >= 0, got -1.0"),
+                       ({"delta": float("inf")}, r"critical_points.delta must be a finite number"),
+                       ({"keep_fraction": 1.5}, r"critical_points.keep_fraction must be in \[0, 1\], got 1.5"),
+                       ({"keep_fraction": "half"}, r"critical_points.keep_fraction must be a number")):
+        with pytest.raises(MeshError, match=match):  # by name: at construction
+            flt.Chain([*smooth, ("critical_points", {"attribute": "height_smooth", "column": 0, **bad})])
+        with pytest.raises(MeshError, match=match):  # made directly: at construction too
+            CriticalPointsFilter(attribute="height_smooth", column=0, **bad)
+
+    @dataclasses.dataclass(frozen=True)
+    class Blur:  # a plugin declaring its bounds with flt.param, made directly
+        sigma: float = flt.param(1.0, gt=0)
+
+        def __call__(self, geometry):
+            return geometry
+
+    mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6)
+    with pytest.raises(MeshError, match=r"Blur.sigma must be > 0, got -1.0"):
+        flt.Chain([*smooth, Blur(sigma=-1.0)])
+    chain = flt.Chain(smooth)
+    chain.steps.append(Blur(sigma=0.0))  # past append: Chain.check (run first by every chain) refuses it
+    with pytest.raises(MeshError, match=r"step 3 \(Blur\): Blur.sigma must be > 0, got 0.0"):
+        chain(mesh)
+    assert calls == []
+    assert "in [0, 1]" in str(next(p for p in flt.describe("critical_points")["parameters"]
+                                    if p.name == "keep_fraction"))
+
+
+@pytest.mark.parametrize("name, params, match", [
+    ("hks", {"k": "20"}, r"hks.k must be an integer, got '20'"),
+    ("hks", {"k": 0}, r"hks.k must be >= 1, got 0"),
+    ("hks", {"scales": 0}, r"hks.scales must be in \[1, 100000\], got 0"),
+    ("hks", {"times": []}, r"hks.times must have at least 1 value \(None for the default\), got \(\)"),
+    ("hks", {"times": "0.1"}, r"hks.times must be a list, got '0.1'"),
+    ("hks", {"times": ["0.1"]}, r"hks.times must be a number, got '0.1'"),
+    ("heat_smooth", {"times": (0.1, -1.0)}, r"heat_smooth.times must be >= 0 \(every value\), got \(0.1, -1.0\)"),
+    ("heat_smooth", {"tol": -1e-3}, r"heat_smooth.tol must be in \(0, 1\), got -0.001"),
+    ("heat_smooth", {"tol": "1e-8"}, r"heat_smooth.tol must be a number, got '1e-8'"),
+    ("heat_smooth", {"scales": 2.5}, r"heat_smooth.scales must be an integer, got 2.5"),
+    ("feature_approx", {"t": -0.5}, r"feature_approx.t must be >= 0, got -0.5"),
+    ("feature_approx", {"scale": 11}, r"feature_approx.scale must be in \[1, 10\], got 11"),
+    ("feature_approx", {"k": -3}, r"feature_approx.k must be >= 1, got -3"),
+    ("scalar", {"sigma": -0.1}, r"scalar.sigma must be >= 0, got -0.1"),
+    ("scalar", {"seed": -1}, r"scalar.seed must be >= 0, got -1"),
+    ("scalar", {"axis": "z"}, r"scalar.axis must be an integer, got 'z'"),
+    ("colorize", {"range": [1.0]}, r"colorize.range must have exactly 2 values, got \(1.0,\)"),
+    ("colorize", {"range": ["a", "b"]}, r"colorize.range must be a number, got 'a'"),
+])
+def test_bad_parameters_are_refused_by_name_and_directly(name, params, match):
+    with pytest.raises(MeshError, match=match):
+        flt.get(name, **params)
+    with pytest.raises(MeshError, match=match):  # made directly: the same check, the same message
+        type(flt.get(name))(**params)
