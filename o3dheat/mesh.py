@@ -30,9 +30,19 @@ and ``D = diag(Pᵀ 1)`` the multiplicities, ``L_in = P D⁻¹ L D⁻¹ Pᵀ`` a
 ``L_in X_in = B_in X_in Λ`` and ``X_inᵀ B_in X_in = I``, ``1ᵀ B_in 1`` is the area and the heat
 kernel ``X_in D_t X_inᵀ B_in = P X D_t Xᵀ B D⁻¹ Pᵀ`` averages the copies and keeps constants.
 
-Non-manifold edges or vertices are reported by :func:`check_mesh` but are valid input: the
-linear FEM sums over every triangle at an edge. (Topology, :mod:`o3dheat.topology`, needs a
-2-manifold; it welds duplicate vertices the same way.)
+Welding joins copies only across edges with exactly two faces: coincident vertices with a fan
+of faces each (a pinched vertex of a triangle soup, the copies :func:`repair` makes) stay apart,
+and the weld's warning and :func:`check_mesh` (``split_vertices``) say how many. A soup cannot
+tell one vertex with two fans from two coincident vertices with a fan each; an indexed file
+(OBJ, PLY) can, and is taken as it is.
+
+Non-manifold edges or vertices are reported by :func:`check_mesh` (its status is then not ok)
+but are valid input to the FEM: the linear FEM sums over every triangle at an edge. Topology
+(:mod:`o3dheat.topology`) needs a 2-manifold and refuses them; it welds duplicate vertices the
+same way.
+
+Every function taking a mesh takes a mesh-like too: an object with a ``mesh`` attribute holding
+an Open3D mesh or ``(V, F)`` (:func:`mesh_of`; :class:`Repaired`, ``sampling.Resampled``).
 """
 
 from __future__ import annotations
@@ -47,7 +57,7 @@ from scipy.sparse.csgraph import connected_components
 from . import checks
 from .errors import MeshError
 
-__all__ = ["as_arrays", "check_mesh", "MeshReport", "prepare", "Prepared", "face_areas", "repair", "Repaired"]
+__all__ = ["as_arrays", "mesh_of", "check_mesh", "MeshReport", "prepare", "Prepared", "face_areas", "repair", "Repaired"]
 
 log = logging.getLogger("o3dheat")
 
@@ -73,15 +83,43 @@ def _from_open3d(mesh):
     return None
 
 
+def mesh_of(mesh):
+    """The mesh an object stands for: the object itself when it is an Open3D mesh or a ``(V, F)``
+    pair, else its ``mesh`` attribute (followed while it is another such object).
+
+    This is the one mesh-like protocol of o3dheat: every function that takes a mesh (filters,
+    :func:`o3dheat.eigensolve`, :func:`o3dheat.critical_points`, ...) takes any object with a
+    ``mesh`` attribute holding an Open3D triangle mesh or a ``(V, F)`` pair -- a
+    :class:`Repaired` (:func:`repair`), a :class:`o3dheat.sampling.Resampled`, or one of yours.
+    Other objects are returned as they are (the caller refuses them).
+
+    Examples
+    --------
+    >>> import numpy as np, o3dheat
+    >>> V, F = np.eye(3), np.array([[0, 1, 2]])
+    >>> r = o3dheat.repair((V, F))
+    >>> type(o3dheat.mesh.mesh_of(r)).__name__, o3dheat.mesh.mesh_of((V, F))[1].tolist()
+    ('TriangleMesh', [[0, 1, 2]])
+    """
+    for _ in range(8):  # a chain of wrappers, not a cycle
+        if isinstance(mesh, (tuple, list)) or type(mesh).__module__.startswith("open3d"):
+            return mesh
+        inner = getattr(mesh, "mesh", None)
+        if inner is None or inner is mesh:
+            return mesh
+        mesh = inner
+    return mesh
+
+
 def _pair(mesh):
-    """(V, F) as given: from an Open3D mesh or a 2-sequence, not yet checked."""
+    """(V, F) as given: from an Open3D mesh, a 2-sequence or a mesh-like (:func:`mesh_of`), not
+    yet checked."""
+    mesh = mesh_of(mesh)
     pair = _from_open3d(mesh)
     if pair is None:
-        arrays = getattr(mesh, "arrays", None)  # a resampling's result (o3dheat.sampling.Resampled)
-        if isinstance(arrays, tuple) and len(arrays) == 2:
-            mesh = arrays
         if not isinstance(mesh, (tuple, list)) or len(mesh) != 2:
-            raise MeshError(f"expected an Open3D TriangleMesh, a (V, F) tuple or a resampling, "
+            raise MeshError(f"expected an Open3D TriangleMesh, a (V, F) tuple or an object with a "
+                            f"`mesh` attribute holding one (o3dheat.repair's, a resampling), "
                             f"got {type(mesh).__name__}")
         pair = (checks.values(mesh[0]), checks.values(mesh[1]))
     return pair
@@ -122,8 +160,10 @@ def as_arrays(mesh):
 
     Parameters
     ----------
-    mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
-        The surface. ``V`` is ``(n, 3)`` real, ``F`` is ``(m, 3)`` integer (0-based).
+    mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh, (V, F) tuple or mesh-like
+        The surface. ``V`` is ``(n, 3)`` real, ``F`` is ``(m, 3)`` integer (0-based). A mesh-like
+        is any object with a ``mesh`` attribute holding one of these (:func:`mesh_of`): a
+        :class:`Repaired`, a :class:`o3dheat.sampling.Resampled`...
 
     Returns
     -------
@@ -271,18 +311,30 @@ def _first_faces(F):
 
 def _weld_map(V, F):
     """``rep`` (n,) int64: for each vertex referenced by ``F``, the smallest index of a referenced
-    vertex with exactly the same coordinates; ``rep[i] = i`` otherwise (unreferenced vertices are
-    never welded). Vectorised (:func:`_first_copies`)."""
+    vertex with exactly the same coordinates it is welded into; ``rep[i] = i`` otherwise
+    (unreferenced vertices are never welded). Vectorised (:func:`_first_copies`). See
+    :func:`_weld` for the copies kept apart."""
+    return _weld(V, F)[0]
+
+
+def _weld(V, F):
+    """(``rep`` as :func:`_weld_map`, ``apart``): ``apart`` counts the referenced vertices left
+    as separate vertices although they coincide exactly with another referenced one -- the copies
+    welding keeps apart to keep the surface a manifold, i.e. the vertices it *splits*: a soup
+    (an STL) cannot tell a pinched vertex (one vertex, two fans) from two coincident vertices
+    with a fan each (pymeshlab's cow.obj has such a pair, vertices 45 and 2904), and welding
+    gives one vertex per fan, the 2-manifold; the count says how many such splits it made."""
     n = len(V)
     rep = np.arange(n, dtype=np.int64)
     if n == 0 or len(F) == 0:
-        return rep
+        return rep, 0
     used = np.zeros(n, bool)
     used[F.reshape(-1)] = True
     idx = np.flatnonzero(used)
     rep[idx] = idx[_first_copies(V[idx])]
     if np.all(rep == np.arange(n)):
-        return rep
+        return rep, 0
+    positions = len(np.unique(rep[idx]))
     # copies are welded only where that keeps the surface a manifold: a mesh split on purpose at a
     # non-manifold edge or vertex (o3dheat.repair) stays split. The corners of one input vertex
     # stay together; corners of coincident copies join across welded edges with exactly two faces.
@@ -299,21 +351,75 @@ def _weld_map(V, F):
     same = F.reshape(-1)[order[1:]] == F.reshape(-1)[order[:-1]]
     u, v = np.r_[u, order[1:][same]], np.r_[v, order[:-1][same]]
     k, lab = _corner_components(m, u, v)
+    flat = F.reshape(-1)
     smallest = np.full(k, n, np.int64)
-    np.minimum.at(smallest, lab, F.reshape(-1))
-    rep[F.reshape(-1)] = smallest[lab]
-    return rep
+    np.minimum.at(smallest, lab, flat)
+    rep[flat] = smallest[lab]
+    return rep, int(len(np.unique(rep[idx])) - positions)
+
+
+@dataclass
+class _Cleaned:
+    """What :func:`_clean` did to a mesh's faces: the one set of rules :func:`prepare` (every
+    computation) applies and :func:`check_mesh` reports."""
+
+    F: np.ndarray  # the faces used, in the caller's vertex numbering (welded copies replaced)
+    rep: np.ndarray | None  # weld map (n,) or None when nothing was welded
+    welded: int = 0  # referenced copies welded into an earlier one
+    split: int = 0  # referenced vertices coincident with another, kept apart (see _weld)
+    degenerate: int = 0
+    duplicate: int = 0
+    zero_area: int = 0
+    used: np.ndarray | None = None  # (n,) bool: vertices of the faces used
+    unreferenced: int = 0  # input vertices in no face used (welded copies not counted)
+
+
+def _clean(V, F, weld=True):
+    """Weld, then drop degenerate, duplicate and zero-area faces, in this order (the rules of the
+    module docstring), counting each. ``V`` must be finite, ``F`` in range."""
+    n = len(V)
+    rep, split = _weld(V, F) if weld else (None, 0)
+    welded = 0 if rep is None else int(np.sum(rep != np.arange(n)))
+    if welded:
+        F = rep[F]
+    else:
+        rep = None
+    c = _Cleaned(F, rep, welded, split)
+    bad = _degenerate(F)
+    c.degenerate = int(bad.sum())
+    F = F[~bad]
+    if len(F):
+        first = _first_faces(F)
+        c.duplicate = int(np.sum(~first))
+        F = F[first]
+    if len(F):
+        zero = _zero_area(V, F)
+        c.zero_area = int(zero.sum())
+        F = F[~zero]
+    c.F = F
+    c.used = np.zeros(n, bool)
+    c.used[F.reshape(-1)] = True
+    # after welding, the copies are referenced by no face: they are not "set aside", unless all
+    # the faces of their welded vertex went
+    c.unreferenced = int(n - c.used.sum() - welded)
+    if welded:
+        c.unreferenced += int(np.sum(~c.used[rep] & (rep != np.arange(n))))
+    return c
 
 
 @dataclass
 class MeshReport:
     """What :func:`check_mesh` found. ``str(report)`` gives a readable summary.
 
-    Attributes are counts (int) unless said otherwise; ``ok`` is True when o3dheat will use the
-    mesh as it is, without any repair. When duplicate vertices are welded (``welded_vertices``,
-    see :func:`prepare`), the face, edge, boundary, component, Euler characteristic, genus and
-    non-manifold counts are those of the welded mesh, the one every computation uses; the vertex
-    counts are those of the input.
+    Attributes are counts (int) unless said otherwise; ``ok`` is True when every o3dheat function
+    uses the mesh as it is, without any repair: nothing welded or dropped, and a 2-manifold
+    (``manifold``: what topology needs; the FEM takes non-manifold meshes). The counts come from
+    the rules :func:`prepare` applies (one function, ``_clean``): when duplicate vertices are
+    welded (``welded_vertices``) or faces dropped (``used_faces`` are left), the edge, boundary,
+    component, Euler characteristic, genus and non-manifold counts are those of the mesh every
+    computation uses; the vertex and face counts are those of the input. ``split_vertices``:
+    referenced vertices that coincide with another but stay apart (welding joins the copies a
+    triangle soup has, not the vertices an indexed mesh keeps separate, as :func:`repair` makes).
 
     Examples
     --------
@@ -341,6 +447,14 @@ class MeshReport:
     area: float
     problems: list = field(default_factory=list)
     welded_vertices: int = 0  # referenced duplicates welded into an earlier copy (0 with weld=False)
+    used_faces: int = -1  # faces every computation uses (after the drops); -1: not counted
+    split_vertices: int = 0  # referenced vertices coincident with another, kept apart by welding
+
+    @property
+    def manifold(self):
+        """True when topology (critical points, persistence, level sets) accepts the mesh: faces
+        left, no non-manifold edge or vertex (what :class:`o3dheat.topology.Surface` checks)."""
+        return self.used_faces != 0 and not self.non_manifold_edges and not self.non_manifold_vertices
 
     @property
     def ok(self):
@@ -349,8 +463,9 @@ class MeshReport:
     def __str__(self):
         g = "n/a" if self.genus is None else (f"{self.genus:g}")
         welded = f" ({self.n_vertices - self.welded_vertices} after welding)" if self.welded_vertices else ""
+        used = (f" ({self.used_faces} used)" if 0 <= self.used_faces != self.n_faces else "")
         lines = [
-            f"vertices: {self.n_vertices}{welded}   faces: {self.n_faces}   area: {self.area:.6g}",
+            f"vertices: {self.n_vertices}{welded}   faces: {self.n_faces}{used}   area: {self.area:.6g}",
             f"components: {self.components}   boundary loops: {self.boundary_loops}   "
             f"Euler characteristic: {self.euler_characteristic}   genus: {g}",
             f"degenerate faces: {self.degenerate_faces}   zero-area faces: {self.zero_area_faces}   "
@@ -413,9 +528,11 @@ def check_mesh(mesh, weld=True):
     """Inspect a mesh and report everything that matters to the FEM operators.
 
     Unlike :func:`as_arrays` it never raises on a bad mesh (except when it cannot read one at
-    all); it counts the problems instead. Duplicate vertices (referenced, exactly coincident) are
-    welded first, as :func:`prepare` does: the report then describes the mesh that every
-    computation uses, and its status names the weld (``ok`` is False).
+    all); it counts the problems instead. The mesh is cleaned by the very function
+    :func:`prepare` uses (weld, then drop degenerate, duplicate and zero-area faces): the report
+    describes the mesh that every computation uses, and its status names each repair and a
+    non-manifold edge or vertex (which :func:`o3dheat.critical_points` refuses): ``ok`` is then
+    False.
 
     Parameters
     ----------
@@ -461,24 +578,13 @@ def check_mesh(mesh, weld=True):
         m = len(F)
     if nonfinite:
         problems.append(f"{nonfinite} non-finite vertices")
-    used_in = np.zeros(n, bool)
-    used_in[F.reshape(-1)] = True
-    unref = int(n - used_in.sum())
     dup_verts = int(np.sum(_first_copies(V) != np.arange(n)))
-    welded, used = 0, used_in
-    if weld and not nonfinite:  # (a non-finite mesh is reported, not welded)
-        wmap = _weld_map(V, F)
-        welded = int(np.sum(wmap != np.arange(n)))
-        if welded:
-            F = wmap[F]
-            used = np.zeros(n, bool)
-            used[F.reshape(-1)] = True
-    degenerate = _degenerate(F)
-    Fs = np.sort(F[~degenerate], axis=1)
-    dup_faces = len(Fs) - len(_unique_rows(Fs)) if len(Fs) else 0
     finite = np.all(np.isfinite(V), axis=1)
-    good = F[~degenerate]
-    zero = int(np.sum(_zero_area(np.where(finite[:, None], V, 0.0), good))) if len(good) else 0
+    Vf = np.where(finite[:, None], V, 0.0)
+    # the very rules every computation applies (prepare), so that the counts below are those of
+    # the mesh the computations use (a non-finite mesh is reported, not welded)
+    c = _clean(Vf, F, weld=weld and not nonfinite)
+    good = c.F
     E, counts = _edges(good) if len(good) else (np.zeros((0, 2), int), np.zeros(0, int))
     nm_edges = int(np.sum(counts > 2))
     bE = E[counts == 1]
@@ -486,29 +592,37 @@ def check_mesh(mesh, weld=True):
     nm_verts = _non_manifold_vertices(good, n) if len(good) else 0
     if len(good):
         g = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
-        ncomp_all, lab = connected_components(g, directed=False)
+        _, lab = connected_components(g, directed=False)
         components = len(np.unique(lab[np.unique(good)]))
     else:
         components = 0
-    chi = int(used.sum() - len(E) + len(good)) if len(good) else 0
+    chi = int(c.used.sum() - len(E) + len(good)) if len(good) else 0
     genus = None
     if nm_edges == 0 and nm_verts == 0 and len(good):
         genus = (2 * components - chi - loops) / 2
-    area = float(face_areas(np.where(finite[:, None], V, 0.0), good).sum()) if len(good) else 0.0
-    if welded:
-        problems.append(f"welded {welded} duplicate vertices (exactly coincident coordinates) into "
-                        f"{n - welded - unref}; the counts above are of the welded mesh")
-    if degenerate.any():
-        problems.append(f"{int(degenerate.sum())} degenerate faces (dropped)")
-    if zero:
-        problems.append(f"{zero} zero-area faces (dropped)")
-    if dup_faces:
-        problems.append(f"{dup_faces} duplicate faces (dropped)")
-    if unref:
-        problems.append(f"{unref} unreferenced vertices (set aside, value 0 in results)")
-    return MeshReport(n, int(len(F)), int(degenerate.sum()), zero, int(dup_faces), unref, dup_verts,
+    area = float(face_areas(Vf, good).sum()) if len(good) else 0.0
+    if c.welded:
+        apart = (f"; {c.split} coincident vertices kept apart (split: each is a vertex of its own, "
+                 f"in the input as after welding)" if c.split else "")
+        problems.append(f"welded {c.welded} duplicate vertices (exactly coincident coordinates) into "
+                        f"{int(np.sum(c.used))}{apart}; the counts above are of the welded mesh")
+    if c.degenerate:
+        problems.append(f"{c.degenerate} degenerate faces (dropped)")
+    if c.zero_area:
+        problems.append(f"{c.zero_area} zero-area faces (dropped)")
+    if c.duplicate:
+        problems.append(f"{c.duplicate} duplicate faces (dropped)")
+    if c.unreferenced:
+        problems.append(f"{c.unreferenced} unreferenced vertices (set aside, value 0 in results)")
+    if m and not len(good) and not nonfinite:
+        problems.append("no face with a positive area is left: every computation refuses the mesh")
+    if nm_edges or nm_verts:
+        problems.append(f"not a 2-manifold ({nm_edges} non-manifold edges, {nm_verts} non-manifold "
+                        "vertices): the FEM (spectrum, heat kernel) uses it, topology (critical points, "
+                        "persistence) refuses it; o3dheat.repair(mesh) splits them")
+    return MeshReport(n, int(m), c.degenerate, c.zero_area, c.duplicate, c.unreferenced, dup_verts,
                       nm_edges, nm_verts, int(len(bE)), loops, int(components), nonfinite, chi,
-                      genus, area, problems, welded)
+                      genus, area, problems, c.welded, int(len(good)), c.split)
 
 
 @dataclass(frozen=True)
@@ -695,43 +809,30 @@ def prepare(mesh, weld=True):
     """
     V, F = as_arrays(mesh)
     n = len(V)
-    rep = _weld_map(V, F) if weld else None
-    welded = 0 if rep is None else int(np.sum(rep != np.arange(n)))
-    if welded:
-        log.warning("welded %d duplicate vertices (exactly coincident coordinates) into %d: results "
+    c = _clean(V, F, weld=weld)
+    if c.welded:
+        apart = (f"; {c.split} vertices coincide with another but are kept apart (split: a vertex of "
+                 "its own each, as they are in the input)" if c.split else "")
+        log.warning("welded %d duplicate vertices (exactly coincident coordinates) into %d%s: results "
                     "are given per input vertex, each copy with the value of its welded vertex",
-                    welded, len(np.unique(rep[F.reshape(-1)])))
-        F = rep[F]
-    degenerate = _degenerate(F)
-    if degenerate.any():
-        log.warning("dropping %d degenerate faces (a vertex index repeated)", int(degenerate.sum()))
-        F = F[~degenerate]
-    if len(F):
-        first = _first_faces(F)
-        if not first.all():
-            log.warning("dropping %d duplicate faces", int(np.sum(~first)))
-            F = F[first]
-    if len(F):
-        zero = _zero_area(V, F)
-        if zero.any():
-            log.warning("dropping %d zero-area faces", int(zero.sum()))
-            F = F[~zero]
+                    c.welded, len(np.unique(c.rep[F.reshape(-1)])), apart)
+    if c.degenerate:
+        log.warning("dropping %d degenerate faces (a vertex index repeated)", c.degenerate)
+    if c.duplicate:
+        log.warning("dropping %d duplicate faces", c.duplicate)
+    if c.zero_area:
+        log.warning("dropping %d zero-area faces", c.zero_area)
+    F = c.F
     if len(F) == 0:
         raise MeshError("no face with a positive area is left: the mesh is degenerate")
-    used = np.zeros(n, bool)
-    used[F.reshape(-1)] = True
-    if used.all():
+    if c.used.all():
         return Prepared(V, F, np.arange(n), n)
-    keep = np.flatnonzero(used)
-    # after welding, the copies are referenced by no face: they are not "set aside"
-    unref = n - len(keep) - welded
-    if welded:
-        unref += int(np.sum(~used[rep] & (rep != np.arange(n))))  # copies whose faces all went
-    if unref:
-        log.warning("%d unreferenced vertices set aside; they get the value 0 in every result", unref)
+    keep = np.flatnonzero(c.used)
+    if c.unreferenced:
+        log.warning("%d unreferenced vertices set aside; they get the value 0 in every result", c.unreferenced)
     remap = np.full(n, -1, dtype=np.int64)
     remap[keep] = np.arange(len(keep))
-    return Prepared(V[keep], remap[F], keep, n, remap[rep] if welded else None)
+    return Prepared(V[keep], remap[F], keep, n, remap[c.rep] if c.welded else None)
 
 
 # ------------------------------------------------------------------------------------- repair
@@ -873,6 +974,7 @@ def repair(mesh, weld=True, split=True, orient=True, min_component_faces=0):
 
     min_component_faces = checks.count(min_component_faces, "min_component_faces", minimum=0,
                                        maximum=np.iinfo(np.int64).max)
+    mesh = mesh_of(mesh)  # a Repaired, a Resampled...: their mesh, with its attributes
     n_faces_in = len(as_arrays(mesh)[1])
     p = prepare(mesh, weld=weld)
     welded = 0 if p.weld is None else int(np.sum(p.weld >= 0) - len(p.keep))

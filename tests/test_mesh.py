@@ -405,3 +405,123 @@ def test_first_copies_match_brute_force_even_when_the_hash_collides_everywhere()
     # faces: the first of each set with the same vertices, in any order
     F = np.array([[0, 1, 2], [2, 1, 0], [1, 2, 3], [3, 1, 2], [0, 1, 2], [4, 5, 6]])
     assert m._first_faces(F).tolist() == [True, False, True, False, False, True]
+
+
+# ------------------------------------------------------------- one answer per surface (issue items)
+def sample_mesh_path(name):
+    import importlib.resources
+
+    return importlib.resources.files("pymeshlab") / "tests" / "sample_meshes" / name
+
+
+def obj_arrays(name):
+    """The vertices and triangles of a sample OBJ by plain text parsing (v and f lines)."""
+    V, F = [], []
+    for line in sample_mesh_path(name).read_text().splitlines():
+        w = line.split()
+        if w and w[0] == "v":
+            V.append([float(x) for x in w[1:4]])
+        elif w and w[0] == "f":
+            c = [int(t.split("/")[0]) - 1 for t in w[1:]]
+            F.extend([c[0], c[i], c[i + 1]] for i in range(1, len(c) - 1))
+    return np.array(V), np.array(F)
+
+
+def test_a_soup_welds_to_the_files_vertices_and_reports_its_splits(caplog):
+    """cow.obj has two vertices at one position (45 and 2904), a fan each: its triangle soup (an
+    STL) welds to the same two (chi 2, the same spectrum), and the weld says it kept them apart.
+    Merged into one vertex (what Open3D's OBJ reader makes of the file) it is another surface: a
+    pinched vertex, chi 1, not a 2-manifold, and the report says so."""
+    V, F = obj_arrays("cow.obj")
+    assert len(V) == 2904 and np.array_equal(V[44], V[2903])
+    Vs, Fs = split_vertices(V, F)
+    r, rs = o3dheat.check_mesh((V, F)), o3dheat.check_mesh((Vs, Fs))
+    assert (r.euler_characteristic, r.non_manifold_vertices, r.split_vertices, r.ok) == (2, 0, 1, True)
+    assert (rs.euler_characteristic, rs.non_manifold_vertices, rs.components, rs.split_vertices) == \
+        (2, 0, 1, 1)
+    assert "1 coincident vertices kept apart (split" in str(rs)
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        p = prepare((Vs, Fs))
+    assert "1 vertices coincide with another but are kept apart (split" in caplog.text
+    q = prepare((V, F))
+    np.testing.assert_array_equal(q.V[q.F], p.V[p.F])  # the same triangles, vertex for vertex
+    a = o3dheat.eigensolve((V, F), k=5).eigenvalues
+    b = o3dheat.eigensolve((Vs, Fs), k=5).eigenvalues
+    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+    merged = (V[:-1], np.where(F == 2903, 44, F))
+    rm = o3dheat.check_mesh(merged)
+    assert (rm.euler_characteristic, rm.non_manifold_vertices, rm.ok) == (1, 1, False)
+    assert abs(o3dheat.eigensolve(merged, k=5).eigenvalues[1] - a[1]) > 0.05  # another surface
+
+
+def test_repaired_copies_stay_apart_and_are_reported_as_split():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0.0]])
+    F = np.array([[0, 1, 2], [0, 3, 4]])  # a bow tie: repair gives each fan its own vertex 0
+    r = o3dheat.repair((V, F))
+    rep = o3dheat.check_mesh(r)
+    assert rep.non_manifold_vertices == 0 and rep.split_vertices == 1 and rep.ok
+
+
+def non_manifold_edge():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1.0]])
+    return V, np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
+
+
+def pinched_vertex():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0.0]])
+    return V, np.array([[0, 1, 2], [0, 3, 4]])
+
+
+@pytest.mark.parametrize("mesh", [non_manifold_edge(), pinched_vertex()], ids=["edge", "vertex"])
+def test_report_status_agrees_with_topology(mesh):
+    """The report said 'status: ok' for meshes critical_points refuses."""
+    r = o3dheat.check_mesh(mesh)
+    assert not r.ok and not r.manifold and "not a 2-manifold" in str(r) and "status: ok" not in str(r)
+    with pytest.raises(o3dheat.MeshError, match="non-manifold"):
+        o3dheat.critical_points(mesh, mesh[0][:, 0])
+    fixed = o3dheat.repair(mesh)
+    r = o3dheat.check_mesh(fixed)
+    assert r.ok and r.manifold and str(r).endswith("status: ok")
+    o3dheat.critical_points(fixed, fixed.mesh.vertex.positions.numpy()[:, 0])
+
+
+def test_report_topology_is_that_of_the_faces_used(caplog):
+    """Faces prepare drops (duplicate, degenerate, zero-area) are not in the report's topology."""
+    V, F = icosphere(2)
+    far = np.r_[V, [[5.0, 0, 0], [6.0, 0, 0], [7.0, 0, 0]]]  # a zero-area face away from the sphere
+    n = len(V)
+    F2 = np.r_[F, F[:3], [[0, 0, 1]], [[n, n + 1, n + 2]]]
+    r, r0 = o3dheat.check_mesh((far, F2)), o3dheat.check_mesh((V, F))
+    assert (r.duplicate_faces, r.degenerate_faces, r.zero_area_faces) == (3, 1, 1)
+    assert (r.euler_characteristic, r.components, r.genus, r.non_manifold_edges, r.used_faces) == \
+        (r0.euler_characteristic, r0.components, r0.genus, 0, len(F))
+    assert r.unreferenced_vertices == 3 and r.manifold and not r.ok
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        p = prepare((far, F2))
+    assert len(p.F) == r.used_faces and len(p.keep) == n
+    assert "3 unreferenced vertices" in caplog.text
+
+
+def test_mesh_likes_are_meshes_everywhere():
+    """A repair's result went to critical_points, a resampling's to the filters: refused."""
+    from o3dheat.sampling import subdivide
+
+    V, F = pinched_vertex()
+    r = o3dheat.repair((V, F))
+    cp = o3dheat.critical_points(r, r.mesh.vertex.positions.numpy()[:, 0])
+    assert cp.n == len(r.source) and len(cp.minima) == 2  # each fan its own minimum
+    V2, F2 = icosphere(1)
+    res = subdivide((V2, F2))
+    s = o3dheat.eigensolve(res, k=4)
+    assert s.eigenvectors.shape == (len(res.V), 4)
+    np.testing.assert_array_equal(o3dheat.as_arrays(res)[1], res.F)
+    assert o3dheat.check_mesh(r).ok
+    assert o3dheat.mesh.mesh_of(r) is r.mesh
+
+    class Wrapper:  # any object with a mesh attribute
+        def __init__(self, mesh):
+            self.mesh = mesh
+
+    np.testing.assert_array_equal(o3dheat.as_arrays(Wrapper(Wrapper((V2, F2))))[0], V2)
+    with pytest.raises(o3dheat.MeshError, match="mesh` attribute"):
+        o3dheat.as_arrays(Wrapper(None))
