@@ -10,6 +10,7 @@ no critical points), when that package is installed (``pip install robust-laplac
 
 from __future__ import annotations
 
+import logging
 from typing import Annotated, Literal
 
 import numpy as np
@@ -17,6 +18,8 @@ import numpy as np
 from o3dheat import heatflow, kernel
 from o3dheat.errors import MeshError
 from o3dheat.filters import OneOf, check_parameters, param
+
+log = logging.getLogger("o3dheat")
 
 #: how point clouds get operators (``operators=`` of the filters)
 OPERATORS = ("reconstruct", "robust")
@@ -345,7 +348,9 @@ class Site:
     def spectrum(self, k=100, mass="consistent", cache=None):
         """The spectrum of the surface with the mass ``mass`` (:data:`o3dheat.fem.MASS_KINDS`),
         shared by the filters (:func:`o3dheat.filters.shared_spectrum`); robust-laplacian's for
-        point clouds with ``operators="robust"``.
+        point clouds with ``operators="robust"``. A ``k`` larger than the surface allows (its
+        vertices; the points less 2 for robust-laplacian's) is capped, with a warning on the
+        ``o3dheat`` logger naming the ``k`` asked for and the ``k`` used.
 
         Examples
         --------
@@ -359,9 +364,14 @@ class Site:
         from o3dheat.filters import shared_spectrum
 
         if not self.is_mesh and self.operators == "robust":
-            return _robust_spectrum(self.P, k)
-        V, F = self.surface()
-        return shared_spectrum(V, F, k=k, mass=mass, cache=cache)
+            s = _robust_spectrum(self.P, k)
+        else:
+            V, F = self.surface()
+            s = shared_spectrum(V, F, k=k, mass=mass, cache=cache)
+        if s.k < k:
+            log.warning("k=%d eigenpairs asked for, but this surface allows %d: using k=%d (ask for k <= %d "
+                        "to silence this)", k, s.k, s.k, s.k)
+        return s
 
 
 def _robust_operators(P):

@@ -689,3 +689,20 @@ def test_bad_parameters_are_refused_by_name_and_directly(name, params, match):
         flt.get(name, **params)
     with pytest.raises(MeshError, match=match):  # made directly: the same check, the same message
         type(flt.get(name))(**params)
+
+
+@pytest.mark.parametrize("name, params", [("hks", {}), ("heat_smooth", {"attribute": "positions", "column": 2}),
+                                          ("feature_approx", {"attribute": "positions", "column": 2})])
+def test_a_capped_k_is_a_warning(name, params, caplog):
+    """A tetrahedron has 4 vertices: k=100 eigenpairs were silently 4."""
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        flt.apply(tmesh(V, F), name, k=100, **params)
+    capped = [r for r in caplog.records if "k=100 eigenpairs asked for" in r.getMessage()]
+    assert capped and capped[0].name == "o3dheat" and capped[0].levelname == "WARNING"
+    assert "this surface allows 4: using k=4" in capped[0].getMessage()
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        flt.apply(tmesh(V, F), name, k=4, **params)
+    assert not [r for r in caplog.records if "asked for" in r.getMessage()]
