@@ -88,21 +88,30 @@ def count(x, name, minimum=1, maximum=1_000_000):
 
 
 def times(t):
-    """Times as a float64 scalar or 1-D array: finite and >= 0 (the backward heat equation is
-    ill-posed).
+    """Times as a float64 scalar or a non-empty 1-D array: numbers (not text: ``"0.1"`` is refused,
+    not parsed), finite and >= 0 (the backward heat equation is ill-posed).
 
     Examples
     --------
     >>> from o3dheat.checks import times
     >>> times([0.1, 1]).tolist()
     [0.1, 1.0]
+    >>> times([])
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: t is empty: give at least one time
     """
+    raw = np.asarray(values(t)) if not isinstance(t, (str, bytes)) else np.asarray(t)
+    if raw.dtype.kind in "USOV" and raw.size:  # text, bytes, objects: not times
+        raise MeshError(f"t must be a number or a 1-D array of times, got {t!r}")
     try:
-        t_arr = np.asarray(values(t), dtype=np.float64)
+        t_arr = raw.astype(np.float64)
     except (TypeError, ValueError):
         raise MeshError(f"t must be a number or a 1-D array of times, got {t!r}") from None
     if t_arr.ndim > 1:
         raise MeshError(f"t must be a number or a 1-D array of times, got shape {t_arr.shape}")
+    if t_arr.size == 0:
+        raise MeshError("t is empty: give at least one time")
     if not np.all(np.isfinite(t_arr)) or np.any(t_arr < 0):
         raise MeshError(f"times must be finite and >= 0 (the backward heat equation is ill-posed), got {t}")
     return t_arr

@@ -31,7 +31,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from . import _spectrum_files, fem, parallel
+from . import _spectrum_files, checks, fem, parallel
 from .errors import ConvergenceError, MeshError, SolverError
 from .lanczos import block_lanczos, rayleigh_ritz
 from .linalg import OutOfMemory, available_memory, check_memory, factorize
@@ -622,15 +622,15 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         from 10k vertices (and from 3k when ``k >= 64``), "arpack" otherwise (where each is
         measured faster).
     tol : float
-        Relative residual asked of "lanczos" (see :func:`o3dheat.lanczos.block_lanczos`): the
+        Relative residual asked of "lanczos", in (0, 1) (see :func:`o3dheat.lanczos.block_lanczos`): the
         default 1e-8 gives eigenvectors to about 1e-8 over the relative gap and eigenvalues equal
         to those of a machine-precision solve to better than 1e-10 relative. "arpack" always runs
         to machine precision (a looser ARPACK tolerance was seen to miss copies of multiple
         eigenvalues).
     seed : int
-        Seed of the start vectors (results are reproducible).
+        Seed of the start vectors, ``>= 0`` (results are reproducible).
     block : int
-        Block size of "lanczos" (right-hand sides per solve).
+        Block size of "lanczos" (right-hand sides per solve), from 1 to 256.
 
     Returns
     -------
@@ -653,6 +653,7 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     fem.check_mass_kind(mass)
     _check_method(method)
     k = _check_k(k)
+    tol, seed, block = _check_settings(tol, seed, block)
     t0 = time.perf_counter()
     prep = prepare(mesh)
     V, F = prep.V, prep.F
@@ -888,6 +889,7 @@ def eigensolve_operators(L, B, k=100, sigma=None, backend="auto", method="auto",
     if abs(L - L.T).max() > 1e-10 * abs(L).max() or abs(B - B.T).max() > 1e-10 * abs(B).max():
         raise MeshError("L and B must be symmetric")
     k = _check_k(k)
+    tol, seed, block = _check_settings(tol, seed, block)
     if k > n:
         raise MeshError(f"k={k} exceeds the size {n}")
     lam, X, used, s, res, timings = _solve(L, B, k, method, sigma, backend, seed, tol, block)
@@ -899,6 +901,13 @@ def eigensolve_operators(L, B, k=100, sigma=None, backend="auto", method="auto",
 def _check_method(method):
     if not isinstance(method, str) or method not in METHODS:
         raise MeshError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
+
+
+def _check_settings(tol, seed, block):
+    """The solver settings, checked: tol in (0, 1), seed an integer >= 0, block from 1 to 256."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise MeshError(f"seed must be an integer >= 0, got {seed!r}")
+    return checks.tolerance(tol), int(seed), checks.count(block, "block", 1, 256)
 
 
 def _check_k(k):

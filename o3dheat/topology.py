@@ -697,6 +697,19 @@ class CriticalPoints:
         out[self.maxima] = MAXIMUM
         return out if self.representative is None else out[self.representative]
 
+    def __len__(self):
+        """Number of critical vertices (a saddle of multiplicity 2 is one vertex; ``sum(counts)``
+        counts it twice, as the Morse relation ``M − s + m = χ`` does).
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+        >>> len(o3dheat.critical_points(m, m.vertex.positions.numpy()[:, 0]))
+        4
+        """
+        return len(self.minima) + len(self.saddles) + len(self.maxima)
+
     def same_as(self, other):
         """True when both have the same minima, saddles (with multiplicities) and maxima.
 

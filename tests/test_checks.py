@@ -80,3 +80,42 @@ def test_absurd_remeshing_iterations_are_refused(sphere):
         remesh(m, iterations=10**9)
     with pytest.raises(o3dheat.MeshError, match="iterations"):
         anisotropic(m, iterations=10**9)
+
+
+def test_times_refuse_text_and_emptiness_everywhere():
+    """Issue 22: times=[] returned an empty result and a string time ("0.1") was parsed; both are
+    refused by the one time check, so HeatKernel.smooth/hks, heat_flow and the rest agree."""
+    import open3d as o3d
+
+    import o3dheat
+    from o3dheat.checks import times
+
+    for bad, msg in (([], "t is empty"), ("0.1", "must be a number"), (b"1", "must be a number"),
+                     (["0.1", "1"], "must be a number"), (np.array([], float), "t is empty")):
+        with pytest.raises(o3dheat.MeshError, match=msg):
+            times(bad)
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)
+    f = m.vertex.positions.numpy()[:, 2]
+    K = o3dheat.HeatKernel(o3dheat.eigensolve(m, k=10, cache=False))
+    for call in (lambda t: K.smooth(f, t), lambda t: K.hks(t), lambda t: o3dheat.heat_flow(m, f, t)):
+        for bad in ([], "0.1"):
+            with pytest.raises(o3dheat.MeshError, match="t is empty|must be a number"):
+                call(bad)
+
+
+@pytest.mark.parametrize("kw, msg", [({"tol": -1}, "tol must be a number in"), ({"tol": 0}, "tol must be"),
+                                     ({"tol": "1e-8"}, "tol must be"), ({"block": 0}, "block must be an integer"),
+                                     ({"block": -2}, "block must be"), ({"block": 2.5}, "block must be"),
+                                     ({"seed": "x"}, "seed must be"), ({"seed": -1}, "seed must be")])
+def test_eigensolve_settings_are_checked(kw, msg):
+    """Issue 22: tol < 0, block <= 0 were accepted silently."""
+    import scipy.sparse as sp
+
+    import o3dheat
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    with pytest.raises(o3dheat.MeshError, match=msg):
+        o3dheat.eigensolve((V, F), k=2, cache=False, **kw)
+    with pytest.raises(o3dheat.MeshError, match=msg):
+        o3dheat.spectrum.eigensolve_operators(sp.identity(4) * 2 - sp.eye(4, k=1) - sp.eye(4, k=-1), sp.identity(4), k=2, **kw)

@@ -791,3 +791,21 @@ def test_warm_up_loads_every_compiled_loop():
             "print(sorted(name for mod, name in J._COMPILED if mod == 'o3dheat.topology'))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == str(sorted(["_k_arcs", "_k_classify", "_k_edges", "_k_fans", "_k_sweeps"]))
+
+
+def test_critical_points_have_a_length_the_number_of_critical_vertices():
+    """Issue 22: CriticalPoints had no len(). len counts vertices; counts weigh saddles by
+    multiplicity (a monkey saddle: one vertex, multiplicity 2)."""
+    import open3d as o3d
+
+    m = o3d.t.geometry.TriangleMesh.create_torus()
+    cp = o3dheat.critical_points(m, m.vertex.positions.numpy()[:, 0])
+    assert len(cp) == 4 == sum(cp.counts) and len(cp) == int((cp.kind > 0).sum())
+    # a monkey saddle: Re (x + iy)^3 at the centre of a fan of 6 triangles
+    ang = np.arange(6) * np.pi / 3
+    V = np.vstack([[0, 0, 0], np.c_[np.cos(ang), np.sin(ang), np.zeros(6)]])
+    F = np.array([[0, 1 + i, 1 + (i + 1) % 6] for i in range(6)])
+    f = np.real((V[:, 0] + 1j * V[:, 1]) ** 3)
+    mk = o3dheat.critical_points((V, F), f)
+    assert list(mk.saddles) == [0] and mk.saddle_multiplicity.tolist() == [2]
+    assert len(mk) == len(mk.minima) + 1 + len(mk.maxima) == sum(mk.counts) - 1
