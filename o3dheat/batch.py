@@ -5,8 +5,10 @@
     table = o3dheat.batch.run(chain, "scans/*.ply", "out/")     # or chain.map("scans/*.ply", "out/")
     o3dheat batch 'scans/*.ply' --out out/ -f scalar:kind=height -f heat_smooth:attribute=height
 
-Inputs are paths or glob patterns (expanded here: quote them in the shell; ``**`` recurses), each
-pattern's matches sorted by name; a file named twice is run once. Each input gives
+Inputs are paths or glob patterns (expanded here: quote them in the shell; ``**`` recurses, into
+each folder once: links to folders are followed, and a link loop ends), each pattern's matches
+sorted by name; a file named twice (or by links) is run once. Patterns match no file of the output
+folder, so that it may lie inside the inputs' tree (``'scans/**/*.ply' --out scans/out``). Each input gives
 ``OUT/<its stem>.ply`` (or ``.npz``), written atomically by :func:`o3dheat.io.write_geometry`
 (every vertex attribute, exactly): a file that exists is complete.
 
@@ -38,7 +40,7 @@ last bits from ``o3dheat apply`` when BLAS there runs on several threads.
 
 from __future__ import annotations
 
-import glob
+import fnmatch
 import logging
 import os
 import re
@@ -62,19 +64,26 @@ SUFFIXES = (".ply", ".npz")
 
 
 # ------------------------------------------------------------------------------- the files
-def expand(patterns):
+def expand(patterns, exclude=None):
     """The input files of paths and glob patterns.
 
     Parameters
     ----------
     patterns : str, Path or sequence of them
         Files, or patterns with ``*``, ``?``, ``[...]`` (``**`` matches folders recursively; ``~``
-        is the home folder). Folders and hidden files are not matched.
+        is the home folder). Folders and hidden files are not matched. Links to folders are
+        followed, but each folder is entered once whatever its names (a link loop such as
+        ``ln -s . a/self`` ends), by its own name before a link's.
+    exclude : str or Path, optional
+        A folder that wildcards (``*``, ``**``...) do not enter: :func:`run` gives its output
+        folder, so that the outputs of a folder inside the inputs' tree are not taken for inputs
+        (a pattern that names the folder, such as ``out/*.ply``, still looks in it).
 
     Returns
     -------
     list of Path
-        Each pattern's matches sorted by name, patterns in the order given, each file once.
+        Each pattern's matches sorted by name, patterns in the order given, each file once (the
+        same file under two names, by links, is the first).
 
     Raises
     ------
@@ -90,16 +99,24 @@ def expand(patterns):
     ...     open(os.path.join(d, name), "w").close()
     >>> [p.name for p in expand([os.path.join(d, "*.ply"), os.path.join(d, "a.ply")])]
     ['a.ply', 'b.ply']
+    >>> os.symlink(d, os.path.join(d, "self"))                  # a loop: each folder once
+    >>> [p.name for p in expand(os.path.join(d, "**", "*.ply"))]
+    ['a.ply', 'b.ply']
     """
     if isinstance(patterns, (str, os.PathLike)):
         patterns = [patterns]
+    skip = set()  # the folders wildcards do not enter, as (device, inode)
+    if exclude is not None and _key(os.path.expanduser(os.fspath(exclude))) is not None:
+        skip.add(_key(os.path.expanduser(os.fspath(exclude))))
     found, seen = [], set()
     for pattern in patterns:
         text = os.path.expanduser(os.fspath(pattern))
-        if re.search(r"[*?[]", text):
-            matches = sorted(m for m in glob.glob(text, recursive=True) if os.path.isfile(m))
+        if _MAGIC.search(text):
+            pruned = []
+            matches = sorted(set(_glob(text, skip, pruned)))
             if not matches:
-                raise MeshError(f"no file matches {os.fspath(pattern)!r}")
+                why = f" (the output folder {os.fspath(exclude)} is not searched)" if pruned else ""
+                raise MeshError(f"no file matches {os.fspath(pattern)!r}{why}")
         elif os.path.isdir(text):
             raise MeshError(f"{text} is a folder: give files or a pattern such as "
                             f"'{os.path.join(text, '*.ply')}'")
@@ -108,13 +125,109 @@ def expand(patterns):
         else:
             matches = [text]
         for m in matches:
-            key = os.path.realpath(m)
+            key = _key(m) or os.path.realpath(m)
             if key not in seen:
                 seen.add(key)
                 found.append(Path(m))
     if not found:
         raise MeshError("no input files given")
     return found
+
+
+_MAGIC = re.compile(r"[*?[]")
+
+
+def _key(path):
+    """(device, inode) of a file or folder (links followed): the same for all its names; None when
+    it cannot be read."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _entries(folder):
+    """(name, is a folder, is a link) of a folder's entries, sorted by name; none when unreadable."""
+    out = []
+    try:
+        with os.scandir(folder or os.curdir) as it:
+            for e in it:
+                try:
+                    out.append((e.name, e.is_dir(), e.is_symlink()))
+                except OSError:
+                    pass
+    except OSError:
+        return []
+    return sorted(out)
+
+
+def _visible(name, part):
+    """glob's rule: a name starting with a dot is matched only by a pattern that does."""
+    return not name.startswith(".") or part.startswith(".")
+
+
+def _glob(pattern, skip, pruned):
+    """The files that match a glob pattern (``glob.glob(pattern, recursive=True)``'s rules), where
+    each ``**`` enters each folder once: links followed, but a folder already entered (by its own
+    name or another link) is not entered again, so link loops end. Wildcards do not enter the
+    folders of ``skip`` ((device, inode) pairs); ``pruned`` gets those they did not enter."""
+    drive, rest = os.path.splitdrive(pattern)
+    seps = os.sep + (os.altsep or "")
+    root = drive + os.sep if rest[:1] and rest[0] in seps else drive
+    parts = [p for p in re.split(f"[{re.escape(seps)}]", rest) if p]
+    return list(_match(root, parts, {}, skip, pruned))
+
+
+def _match(folder, parts, entered, skip, pruned):
+    head, rest = parts[0], parts[1:]
+    if head == "**":  # zero or more folders; the remaining parts are matched in each
+        for d in _folders(folder, entered.setdefault(len(parts), set()), skip, pruned):
+            if rest:
+                yield from _match(d, rest, entered, skip, pruned)
+            else:
+                yield from (os.path.join(d, name) for name, is_dir, _ in _entries(d)
+                            if not is_dir and _visible(name, "") and os.path.isfile(os.path.join(d, name)))
+        return
+    magic = _MAGIC.search(head)
+    if magic:
+        names = [name for name, is_dir, _ in _entries(folder)
+                 if (is_dir or not rest) and _visible(name, head) and fnmatch.fnmatch(name, head)]
+    else:
+        names = [head]
+    for name in names:
+        path = os.path.join(folder, name)
+        if rest:
+            if magic and skip and _key(path) in skip:
+                pruned.append(path)
+            elif os.path.isdir(path):
+                yield from _match(path, rest, entered, skip, pruned)
+        elif os.path.isfile(path):
+            yield path
+
+
+def _folders(top, entered, skip, pruned):
+    """``top`` and the folders under it, each real folder once (``entered``: the (device, inode) of
+    those entered, updated); links to folders are followed after the folders' own names, so that a
+    folder is named by its path rather than by a link; hidden folders are left out, as by glob, and
+    so are those of ``skip`` under ``top`` (added to ``pruned``)."""
+    out, roots = [], [top]
+    while roots:
+        stack = [roots.pop(0)]
+        while stack:
+            d = stack.pop()
+            key = _key(d or os.curdir)
+            if key is None or key in entered:
+                continue
+            if key in skip and out:
+                pruned.append(d)
+                continue
+            entered.add(key)
+            out.append(d)
+            subs = [(name, link) for name, is_dir, link in _entries(d) if is_dir and _visible(name, "")]
+            stack += [os.path.join(d, name) for name, link in reversed(subs) if not link]
+            roots += [os.path.join(d, name) for name, link in subs if link]
+    return out
 
 
 def outputs(inputs, out_dir, suffix=".ply"):
@@ -254,8 +367,8 @@ def _preflight(chain, paths, out_dir, overwrite, suffix):
         chain = Chain(chain)
     if not len(chain):
         raise MeshError("no filter given: an empty chain")
-    inputs = expand(paths)
     out_dir = Path(out_dir)
+    inputs = expand(paths, exclude=out_dir)  # its outputs are not inputs
     if out_dir.exists() and not out_dir.is_dir():
         raise MeshError(f"{out_dir} is a file: the output is a folder")
     dsts = outputs(inputs, out_dir, suffix)

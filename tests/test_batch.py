@@ -297,3 +297,67 @@ def test_warnings_of_a_file_name_the_file(tmp_path, caplog):
     import logging
 
     assert not logging.getLogger("o3dheat").filters  # removed after the file
+
+
+# --------------------------------------------------------------------------------- links, --out inside
+class _TooLong(Exception):
+    pass
+
+
+class _Deadline:
+    """``with _Deadline(s):`` fails the test (_TooLong) when the block runs longer than s seconds."""
+
+    def __init__(self, seconds):
+        self.seconds = seconds
+
+    def __enter__(self):
+        import signal
+
+        def fire(*_):  # not a TimeoutError: that is an OSError, which glob swallows
+            raise _TooLong(f"still running after {self.seconds} s")
+
+        self.old = signal.signal(signal.SIGALRM, fire)
+        signal.alarm(self.seconds)
+
+    def __exit__(self, *exc):
+        import signal
+
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, self.old)
+
+
+def _loops(scans):
+    """Two link loops in the scans folder (``ln -s . self``, and a sub-folder's link to its parent)."""
+    os.symlink(".", scans / "self")
+    (scans / "deep").mkdir()
+    write_mesh(scans / "deep" / "d.ply", _mesh(0))
+    os.symlink("..", scans / "deep" / "up")
+    os.symlink("deep", scans / "alias")  # a second name of a folder: its files once, by their own names
+
+
+def test_link_loops_end_and_each_file_is_run_once(scans, tmp_path, capsys):
+    _loops(scans)
+    with _Deadline(20):
+        got = expand(str(scans / "**" / "*.ply"))
+    assert [os.path.relpath(p, scans) for p in got] == ["deep/d.ply", "m0.ply", "m1.ply", "m2.ply"]
+    with _Deadline(60):
+        t = Chain(STEPS[:1]).map(str(scans / "**" / "*.ply"), tmp_path / "out", scheduler="sequential",
+                                 progress=False)
+        assert t["status"].tolist() == ["done"] * 4
+        assert main(["batch", str(scans / "**" / "*.ply"), "--out", str(tmp_path / "cli"), "--scheduler",
+                     "sequential", "-f", "scalar:kind=height"]) == 0
+    assert "4 files: 4 done" in capsys.readouterr().out
+
+
+def test_an_output_folder_inside_the_inputs_tree_resumes(scans):
+    out = scans / "results"
+    pattern = str(scans / "**" / "*.ply")
+    first = run(STEPS[:1], pattern, out, scheduler="sequential", progress=False)
+    assert first["status"].tolist() == ["done"] * 3 and sorted(p.name for p in out.glob("*.ply")) == \
+        ["m0.ply", "m1.ply", "m2.ply"]
+    again = run(STEPS[:1], pattern, out, scheduler="sequential", progress=False)  # the outputs are no inputs
+    assert again["status"].tolist() == ["skipped"] * 3
+    assert again["input"].tolist() == first["input"].tolist()
+    assert [p.name for p in expand(pattern, exclude=out)] == ["m0.ply", "m1.ply", "m2.ply"]
+    with pytest.raises(o3dheat.MeshError, match="output folder .* is not searched"):
+        expand(str(scans / "*" / "*.ply"), exclude=out)
