@@ -342,3 +342,36 @@ def test_in_process_dask_workers_have_no_memory_limit_to_fear():
 
     with Client(processes=False, n_workers=1, memory_limit="100MB", dashboard_address=None) as client:
         assert "Dask worker" not in client.submit(la.memory_limits, pure=False).result()
+
+
+@pytest.mark.parametrize("binding", [True, False])
+def test_cholespy_memory_is_estimated_before_it_starts(monkeypatch, binding):
+    """Issue 22: factorize(backend="cholespy") segfaulted when memory ran out (cholespy reports
+    nothing). Its need is estimated first (CHOLMOD's symbolic analysis when the binding exists,
+    a mesh bound otherwise), and refused with OutOfMemory before cholespy is called."""
+    import scipy.sparse as sp
+
+    import o3dheat.linalg as la
+
+    pytest.importorskip("cholespy")
+    import cholespy
+
+    A = sp.diags([np.full(999, -1.0), np.full(1000, 3.0), np.full(999, -1.0)], [-1, 0, 1], format="csc")
+    if not binding:
+        monkeypatch.setattr(la, "_library", lambda: None)
+    need = la.cholespy_bytes(A)
+    assert need > 64 * 1000
+    ok = la.factorize(A, backend="cholespy")  # plenty of memory: it works
+    np.testing.assert_allclose(A @ ok.solve(np.ones(1000)), 1.0)
+    monkeypatch.setattr(la, "memory_limits", lambda: {"system": need - 1})
+    monkeypatch.setattr(cholespy, "CholeskySolverD", lambda *a: pytest.fail("cholespy was started"))
+    with pytest.raises(la.OutOfMemory, match="cholespy's factorization of the 1000 x 1000 matrix needs about"):
+        la.factorize(A, backend="cholespy")
+    # a mesh Laplacian: the estimate covers what cholespy was measured to use (38-60 B per n log2 n)
+    from conftest import icosphere
+
+    import o3dheat.fem as fem
+
+    V, F = icosphere(4)
+    L, B, _ = fem.operators(V, F, "consistent")
+    assert la.cholespy_bytes(L + 1e-3 * B) >= 60 * len(V) * np.log2(len(V)) or binding
