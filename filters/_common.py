@@ -137,6 +137,11 @@ class Site:
     geometry : Open3D TriangleMesh or PointCloud (legacy or tensor)
     operators : str
         One of :data:`OPERATORS`: how a point cloud gets its operators.
+    step : filter or None
+        The filter about to run: its plan and outputs are checked on the geometry's attributes
+        now, before any work (:func:`o3dheat.filters.check_step`, as :meth:`~o3dheat.filters.Chain.check`
+        does for a chain), so that a filter called directly or by
+        :func:`~o3dheat.filters.apply` refuses what it cannot write before computing it.
 
     Examples
     --------
@@ -147,7 +152,7 @@ class Site:
     (114, True)
     """
 
-    def __init__(self, geometry, operators="reconstruct"):
+    def __init__(self, geometry, operators="reconstruct", step=None):
         import open3d as o3d
 
         self.o3d = o3d
@@ -172,6 +177,10 @@ class Site:
                 raise MeshError("the point cloud has no points")
         else:
             raise MeshError(f"a filter takes an Open3D TriangleMesh or PointCloud, got {type(geometry).__name__}")
+        if step is not None:
+            from o3dheat.filters import attribute_columns, check_step
+
+            check_step(step, attribute_columns(self.out))
         self.P = self.attrs.positions.numpy().astype(np.float64)
         self.n = len(self.P)
         self._surface = None
@@ -264,7 +273,7 @@ class Site:
             raise AssertionError(f"{name}: {len(values)} rows for {self.n} vertices")
         from o3dheat.filters import check_writable
 
-        check_writable(name)
+        check_writable(name, values.shape[1:])
         self.attrs[name] = self.o3d.core.Tensor(values)
 
     def result(self):

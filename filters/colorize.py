@@ -82,7 +82,7 @@ class Colorize:
 
     def __call__(self, geometry):
         colormap = _colormap(self.colormap)
-        site = Site(geometry)
+        site = Site(geometry, step=self)
         f = site.scalar(self.attribute, self.column)
         lo, hi = self.range if self.range is not None else np.percentile(f, [2, 98])
         s = np.clip((f - lo) / (hi - lo), 0, 1) if hi > lo else np.full(f.shape, 0.5)

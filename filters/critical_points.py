@@ -73,7 +73,7 @@ class CriticalPointsFilter:
     def __call__(self, geometry):
         import o3dheat
 
-        site = Site(geometry, self.operators)
+        site = Site(geometry, self.operators, step=self)
         f, V, F, g = site.scalar_on_surface(self.attribute, self.column)
         S = o3dheat.topology.Surface((V, F))  # once for both (duplicate vertices welded once)
         kind = o3dheat.critical_points(S, g).kind

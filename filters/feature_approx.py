@@ -93,7 +93,7 @@ class FeatureApprox:
     def __call__(self, geometry):
         import o3dheat
 
-        site = Site(geometry, self.operators)
+        site = Site(geometry, self.operators, step=self)
         f, V, F, g = site.scalar_on_surface(self.attribute, self.column)
         A = o3dheat.simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)
         if self.t is None:  # the paper's scales, from the spectrum

@@ -114,7 +114,7 @@ class HeatSmooth:
         return {self.output or f"{self.attribute}_smooth": self._columns_out(c)}
 
     def __call__(self, geometry):
-        site = Site(geometry, self.operators)
+        site = Site(geometry, self.operators, step=self)
         f = site.attribute(self.attribute, self.column)
         count = time_count(self.times, self.scales)
         self._columns_out(f.shape[1] if f.ndim == 2 else 1)  # checked before the eigensolve

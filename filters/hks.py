@@ -75,7 +75,7 @@ class Hks:
         return {self.output: time_count(self.times, self.scales)}
 
     def __call__(self, geometry):
-        site = Site(geometry, self.operators)
+        site = Site(geometry, self.operators, step=self)
         K = kernel_of(site, self.k, self.variant, self.normalize)
         t = times_of(K, self.times, self.scales, self.grid)
         h = K.hks(t, form=self.form)

@@ -74,7 +74,7 @@ class Scalar:
         return {self.output or ("height" if self.kind == "height" else self.kind): 1}
 
     def __call__(self, geometry):
-        site = Site(geometry, self.operators)
+        site = Site(geometry, self.operators, step=self)
         if self.kind == "height":
             values, name = site.P[:, self.axis].copy(), "height"
         elif self.kind == "noise":

@@ -42,7 +42,8 @@ from .errors import MeshError
 
 __all__ = ["GROUP", "names", "describe", "get", "apply", "Chain", "Parameter", "OneOf", "Limits", "param",
            "check_parameters", "shared_spectrum", "set_disk_cache", "parse_value", "refresh", "one_column",
-           "check_column", "attribute_columns", "need_attribute", "check_writable", "PROTECTED", "plain_text"]
+           "check_column", "attribute_columns", "need_attribute", "check_writable", "check_step", "PROTECTED",
+           "SHAPED", "PLY_RESERVED", "plain_text"]
 
 GROUP = "o3dheat.filters"
 
@@ -545,22 +546,95 @@ def attribute_columns(geometry):
 
 #: vertex attributes no filter writes (the geometry itself)
 PROTECTED = ("positions",)
+#: vertex attributes Open3D gives a fixed shape: name -> trailing shape
+SHAPED = {"normals": (3,), "colors": (3,)}
+#: names no output may take: the PLY properties of positions, normals and colours (what every viewer
+#: reads; ``alpha`` only for one column), and the exact colours o3dheat's PLY writer adds
+PLY_RESERVED = ("x", "y", "z", "nx", "ny", "nz", "red", "green", "blue")
+_OUTPUT_NAME = re.compile(r"[!-~]+\Z")  # printable ASCII, no whitespace: one PLY header token (o3dheat.io)
 
 
-def check_writable(name):
-    """Refuse to write a vertex attribute of :data:`PROTECTED` (a MeshError), as every filter does.
+def check_writable(name, columns=None):
+    """Refuse an output that cannot be written, with a MeshError naming it and why: the one check
+    of every filter's outputs, run by :meth:`Chain.check` on what each ``plan`` says it writes,
+    by the built-in filters before their work (their plan) and when they write.
+
+    Refused, as :func:`o3dheat.io.write_mesh` would refuse them after the work: :data:`PROTECTED`
+    (the geometry itself); a name that is not printable ASCII without spaces (a PLY property is
+    one header token; empty text neither); :data:`PLY_RESERVED` names, ``alpha`` of several
+    columns and ``o3dheat_colors*`` (PLY properties of their own); and :data:`SHAPED` names
+    (``normals``, ``colors``) of another shape than Open3D's (n, 3).
+
+    Parameters
+    ----------
+    name : str
+    columns : int, tuple of int or None
+        The output's columns (a ``plan``'s count) or its trailing shape (``values.shape[1:]``);
+        None: the name only.
 
     Examples
     --------
     >>> from o3dheat.filters import check_writable
-    >>> check_writable("height")
+    >>> check_writable("height", 1); check_writable("colors", 3)
     >>> check_writable("positions")
     Traceback (most recent call last):
     ...
     o3dheat.errors.MeshError: refusing to overwrite 'positions'
+    >>> check_writable("colors", 1)
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: output 'colors' must have shape (n, 3) (Open3D's colors), got 1 column: rename it
     """
     if name in PROTECTED:
         raise MeshError(f"refusing to overwrite {name!r}")
+    if not isinstance(name, str) or not _OUTPUT_NAME.match(name):
+        raise MeshError(f"output {name!r} is not a name a PLY property can hold (one header token: printable "
+                        "ASCII without spaces): rename it")
+    if name in PLY_RESERVED or name.startswith("o3dheat_colors"):
+        raise MeshError(f"output {name!r} is a reserved PLY property ({' '.join(PLY_RESERVED)}: positions, "
+                        "normals and colours; o3dheat_colors*): rename it")
+    if columns is None:
+        return
+    trailing = (int(columns),) if isinstance(columns, (int, np.integer)) else tuple(int(c) for c in columns)
+    count = int(np.prod(trailing, dtype=np.int64))
+    if name == "alpha" and count != 1:
+        raise MeshError(f"output 'alpha' has {count} columns: a PLY's alpha is one column: rename it")
+    if name in SHAPED and trailing != SHAPED[name]:
+        want = ", ".join(["n", *map(str, SHAPED[name])])
+        got = f"shape (n, {', '.join(map(str, trailing))})" if len(trailing) > 1 else \
+            f"{count} column" + ("" if count == 1 else "s")
+        raise MeshError(f"output {name!r} must have shape ({want}) (Open3D's {name}), got {got}: rename it")
+
+
+def check_step(step, columns):
+    """What a filter writes on a geometry of attributes ``columns`` (:func:`attribute_columns`),
+    checked before its work: its ``plan`` (which raises what its run would), then each output
+    (:func:`check_writable`). Run by :meth:`Chain.check` for each step and by the built-in
+    filters when they start.
+
+    Returns
+    -------
+    dict or None
+        The attributes and column counts after the step; None for a filter without a plan
+        (nothing can be said before it runs).
+
+    Examples
+    --------
+    >>> import o3dheat.filters as flt
+    >>> flt.check_step(flt.get("hks", scales=4), {"positions": 3})
+    {'positions': 3, 'hks': 4}
+    >>> flt.check_step(flt.get("hks", output="colors"), {"positions": 3})
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: output 'colors' must have shape (n, 3) (Open3D's colors), got 10 columns: rename it
+    """
+    plan = _plan_of(step)
+    if plan is None:
+        return None
+    written = plan(dict(columns))
+    for name, count in written.items():
+        check_writable(name, count)
+    return {**columns, **written}
 
 
 def _plan_of(step):
@@ -879,7 +953,8 @@ class Chain:
 
         Each filter with a ``plan(columns)`` method takes the attributes' column counts
         (:func:`attribute_columns`), raises the MeshError its run would raise, and returns the
-        column counts of what it writes (which may not be ``positions``: :func:`check_writable`).
+        column counts of what it writes, each of which must be writable (:func:`check_writable`:
+        not ``positions``, a PLY/Open3D name, ``colors``/``normals`` of 3 columns): :func:`check_step`.
         Checking stops at the first filter without one (a plugin may have none; a subclass that
         defines its own ``__call__`` but not its own ``plan`` has none either): what follows it is
         checked when it runs, as always.
@@ -914,16 +989,13 @@ class Chain:
                 raise MeshError(f"step {i + 1} ({_name_of(step)}): {e}") from None
         columns = attribute_columns(geometry)
         for i, step in enumerate(self.steps):
-            plan = _plan_of(step)
-            if plan is None:
-                break
             try:
-                written = plan(dict(columns))
-                for name in written:
-                    check_writable(name)
-                columns = {**columns, **written}
+                after = check_step(step, columns)
             except MeshError as e:
                 raise MeshError(f"step {i + 1} ({_name_of(step)}): {e}") from None
+            if after is None:
+                break
+            columns = after
         return columns
 
     def map(self, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", binary=True, progress=None):
