@@ -1,12 +1,16 @@
 """Mesh and point-cloud files that keep every vertex attribute, and atomic writes.
 
-Formats: PLY (binary by default) through plyfile, ``.npz`` (numpy), and for reading only every
-format Open3D reads (OBJ, OFF, STL, GLB, PCD, XYZ...).
+Formats: PLY (binary by default) through plyfile, ``.npz`` (numpy), and for reading only OBJ
+and STL by o3dheat's own readers (OBJ: the file's vertices in the file's order, texture
+coordinates on the triangles; STL: binary or ASCII, a truncated or malformed file refused with
+the facet and line), and every other format Open3D reads (OFF, GLB, PCD, XYZ...).
 
 PLY layout written here: ``x y z`` in the positions' own float type (float or double),
-``nx ny nz`` (the normals' float type) when there are normals, ``red green blue`` as uchar (what
-every viewer reads) and, only when the colours are not exact multiples of 1/255, their exact
-values as ``o3dheat_colors_0..2``. Any other vertex attribute ``a`` of shape (n,) is a property
+``nx ny nz`` (the normals' float type) when there are normals, and colours once, as
+``red green blue``: uchar (what every viewer reads) when they are float32 multiples of 1/255,
+else their exact values as float or double (their own type; other dtypes with a header comment
+``o3dheat colors DTYPE``; files of older versions, which also stored ``o3dheat_colors_0..2``,
+read as before). Any other vertex attribute ``a`` of shape (n,) is a property
 ``a``; of shape (n, c) or (n, a, b...) it is ``a_0 .. a_{c-1}`` (row-major) with a header comment
 ``o3dheat attribute a C DTYPE [shape=(a,b)]`` (C the number of columns, DTYPE the numpy dtype,
 ``shape=`` only when the trailing shape is not (C,); ``shape=()`` marks a one-column attribute
@@ -101,7 +105,8 @@ def write_mesh(path, mesh, binary=True, overwrite=True):
     binary : bool
         PLY only: binary little-endian (default) or ASCII.
     overwrite : bool
-        False refuses to replace an existing file.
+        False refuses to replace an existing file. (Both must be bools: ``binary="no"`` is a
+        MeshError, not a binary file.)
 
     Raises
     ------
@@ -140,7 +145,8 @@ def write_geometry(path, geometry, binary=True, overwrite=True):
 # stored under these names. "alpha" is allowed for a one-column attribute (where a PLY's alpha,
 # read as the attribute "alpha", goes back).
 _PLY_RESERVED = {"x", "y", "z", "nx", "ny", "nz", "red", "green", "blue"}
-_COLORS_KEY = "o3dheat_colors"
+_COLORS_KEY = "o3dheat_colors"  # (older versions stored colours twice: uchar and these columns)
+_RAW_COLORS = "o3dheat colors"  # header comment: red green blue hold the values of this dtype
 # dtypes a PLY property holds as they are (kind + itemsize) when reading; o3dheat writes only
 # _PLY_WRITTEN (uchar, int, float, double: what Open3D, trimesh and meshio all read) and stores
 # every other dtype exactly in one of them, recording the original dtype in the header comment.
@@ -213,12 +219,16 @@ def _ply_vertex_table(attrs, path):
         C = attrs["colors"]
         if C.ndim != 2 or C.shape[1] != 3:
             raise MeshError(f"cannot write {path}: colors must have shape (n, 3), got {C.shape}: use .npz")
-        u8 = np.clip(np.round(np.asarray(C, dtype=np.float64) * 255), 0, 255).astype(np.uint8)
-        add("colors", ["red", "green", "blue"], [u8[:, 0], u8[:, 1], u8[:, 2]])
-        if C.dtype != np.float32 or not np.array_equal((u8 / 255.0).astype(C.dtype), C):
+        # stored once, as red green blue: uchar when that is exact (float32 multiples of 1/255,
+        # what every viewer reads), else the float values themselves (float or double); other
+        # dtypes as their values with a header comment giving the dtype back
+        if _code(C.dtype) in ("f4", "f8"):
+            u8 = np.clip(np.round(np.asarray(C, dtype=np.float64) * 255), 0, 255).astype(np.uint8)
+            S = u8 if C.dtype == np.float32 and np.array_equal((u8 / 255.0).astype(C.dtype), C) else C
+        else:
             S = _ply_storable("colors", C, path)
-            comments.append(f"o3dheat attribute {_COLORS_KEY} 3 {C.dtype.str}")
-            add("colors", [f"{_COLORS_KEY}_{j}" for j in range(3)], [S[:, j] for j in range(3)])
+            comments.append(f"{_RAW_COLORS} {C.dtype.str}")
+        add("colors", ["red", "green", "blue"], [S[:, 0], S[:, 1], S[:, 2]])
     for key, arr in attrs.items():
         if key in _RESERVED:
             continue
@@ -247,6 +257,9 @@ def _ply_vertex_table(attrs, path):
 
 
 def _write(path, attrs, F, binary, overwrite):
+    for name, flag in (("binary", binary), ("overwrite", overwrite)):
+        if not isinstance(flag, (bool, np.bool_)):
+            raise MeshError(f"{name} must be True or False, got {flag!r} ({type(flag).__name__})")
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".ply", ".npz"):
@@ -376,17 +389,27 @@ def atomic_write_text(path, text):
 def _triangulate(polygons, path):
     """(m, 3) int64 triangles from a PLY face list: triangles as they are, polygons of k > 3
     corners fanned from their first corner, ``(v0, v_i, v_{i+1})`` (as Open3D does for OFF and
-    PLY; exact for convex polygons, the usual quads), with a warning saying how many."""
+    PLY; exact for convex polygons, the usual quads), with a warning saying how many. Indices
+    stored as floats must be integers (MeshError naming the face otherwise: never truncated)."""
     if polygons.dtype != object:  # fixed-size lists
         P = np.asarray(polygons).reshape(len(polygons), -1)
-        groups = {P.shape[1]: P}
+        groups = {P.shape[1]: (P, np.arange(len(P)))}
     else:
         lengths = np.fromiter((len(p) for p in polygons), dtype=np.int64, count=len(polygons))
-        groups = {int(k): np.stack(polygons[lengths == k]) for k in np.unique(lengths)}
+        groups = {int(k): (np.stack(polygons[lengths == k]), np.flatnonzero(lengths == k))
+                  for k in np.unique(lengths)}
     if min(groups) < 3:
         raise MeshError(f"{path}: faces with fewer than 3 corners ({min(groups)}): not a surface")
     tris, fanned = [], 0
-    for k, P in sorted(groups.items()):
+    for k, (P, rows) in sorted(groups.items()):
+        if P.dtype.kind not in "iu":  # a float index list: integral values only, never truncated
+            stored = P.dtype.name
+            P = np.asarray(P, dtype=np.float64)
+            bad = ~np.isfinite(P) | (P != np.round(P)) | (np.abs(P) >= 2.0 ** 62)
+            if bad.any():
+                i = int(np.flatnonzero(bad.any(axis=1))[0])
+                raise MeshError(f"{path}: face {int(rows[i])} has the vertex index {float(P[i][bad[i]][0])!r}, "
+                                f"not an integer (the file stores face indices as {stored}): corrupt file")
         P = P.astype(np.int64)
         if k > 3:
             fanned += len(P)
@@ -405,8 +428,9 @@ def read_mesh(path):
     ----------
     path : str or Path
         PLY (every vertex property is kept, multi-column attributes written by
-        :func:`write_mesh` are restored), ``.npz`` written by :func:`write_mesh`, or any format
-        Open3D reads (OBJ, OFF, STL, GLB...).
+        :func:`write_mesh` are restored), ``.npz`` written by :func:`write_mesh`, OBJ (the
+        file's vertices in its order), STL (a triangle soup: every triangle its own three
+        vertices, welded where o3dheat computes), or any format Open3D reads (OFF, GLB...).
 
     Returns
     -------
@@ -416,7 +440,9 @@ def read_mesh(path):
     ------
     MeshError
         Missing, unreadable or truncated file (a PLY whose header declares more rows than the
-        file can hold is refused before reading), or one with no triangles.
+        file can hold is refused before reading; an STL whose last facet is incomplete), a
+        malformed one (naming the OBJ or STL line, the PLY face with a non-integral index), or
+        one with no triangles.
 
     Examples
     --------
@@ -471,9 +497,9 @@ def read_geometry(path):
                 raise MeshError(f"{path}: no points could be read (unreadable or empty file)")
             return pc
         if suffix == ".stl":
-            mesh = _read_binary_stl(path)
-            if mesh is not None:
-                return mesh
+            return _read_stl(path)
+        if suffix == ".obj":
+            return _read_obj(path)
         legacy = o3d.io.read_triangle_mesh(str(path))
         if len(legacy.triangles) == 0:
             raise MeshError(f"{path}: no triangles could be read (unreadable or empty file)")
@@ -484,25 +510,277 @@ def read_geometry(path):
 _STL_TRIANGLE = np.dtype([("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
 
 
-def _read_binary_stl(path):
-    """A binary STL as a TriangleMesh whose every triangle has its own three vertices (what the
-    format stores; o3dheat welds them where it computes), read in one block: Open3D's reader
-    takes 6 s for 2M triangles. None for an ASCII STL (left to Open3D): a binary STL is an 80-byte
-    header, a triangle count and 50 bytes per triangle, so its size tells it apart."""
+def _soup(corners):
+    """A TriangleMesh whose every triangle has its own three vertices (what STL stores; o3dheat
+    welds them where it computes: :func:`o3dheat.mesh.prepare`)."""
     import open3d as o3d
 
-    size = path.stat().st_size
-    if size < 84:
-        return None
-    with open(path, "rb") as fh:
-        fh.seek(80)
-        count = int(np.frombuffer(fh.read(4), "<u4")[0])
-        if count == 0 or size != 84 + _STL_TRIANGLE.itemsize * count:
-            return None
-        tris = np.fromfile(fh, dtype=_STL_TRIANGLE, count=count)
-    V = tris["corners"].reshape(-1, 3).astype(np.float64)
+    V = np.ascontiguousarray(corners, dtype=np.float64).reshape(-1, 3)
     F = np.arange(len(V), dtype=np.int64).reshape(-1, 3)
     return o3d.t.geometry.TriangleMesh(o3d.core.Tensor(V), o3d.core.Tensor(F))
+
+
+def _read_stl(path):
+    """A binary or ASCII STL as a triangle soup (:func:`_soup`). Binary: an 80-byte header, a
+    triangle count and 50 bytes per triangle, read in one block (Open3D's reader takes 6 s for 2M
+    triangles); a file whose size is not that of its count is ASCII or truncated. ASCII: every
+    ``facet`` must be complete (``outer loop``, three ``vertex`` lines, ``endloop``, ``endfacet``)
+    and the file must end with ``endsolid``: a truncated file is refused, naming the facet and
+    the line, never read as part of a mesh."""
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(84)
+        count = int(np.frombuffer(head[80:84], "<u4")[0]) if len(head) == 84 else -1
+        if count >= 0 and size == 84 + _STL_TRIANGLE.itemsize * count:
+            if count == 0:
+                raise MeshError(f"{path}: no triangles could be read (a binary STL of 0 triangles)")
+            return _soup(np.fromfile(fh, dtype=_STL_TRIANGLE, count=count)["corners"])
+    text = path.read_bytes()
+    if not text.lstrip()[:5].lower() == b"solid" or b"\0" in text[:1024]:
+        if count >= 0:
+            raise MeshError(f"{path}: not a readable STL: as binary STL its header declares {count} triangles "
+                            f"({84 + _STL_TRIANGLE.itemsize * count} bytes), the file has {size} bytes "
+                            "(truncated or corrupt), and it is not ASCII STL (no 'solid')")
+        raise MeshError(f"{path}: not a readable STL file ({size} bytes)")
+    return _soup(_ascii_stl_corners(text.decode("ascii", errors="replace"), path))
+
+
+_STL_FACET = ("facet", "outer", "vertex", "vertex", "vertex", "endloop", "endfacet")
+
+
+def _ascii_stl_corners(text, path):
+    """(3 m, 3) float64 corners of an ASCII STL, its structure checked (see :func:`_read_stl`)."""
+    lines = text.splitlines()
+    numbers, words = [], []
+    for number, line in enumerate(lines, 1):
+        w = line.split(None, 1)
+        if w:
+            numbers.append(number)
+            words.append(w)
+    keys = [w[0].lower() for w in words]
+    facets = 0
+    state = -1  # -1: outside a solid; 0..6: position in _STL_FACET (0: between facets)
+    for i, key in enumerate(keys):  # the structure, line by line (7 lines per triangle)
+        if state == 0 and key == "endsolid":
+            state = -1
+        elif state == -1 and key == "solid":
+            state = 0
+        elif state >= 0 and key == _STL_FACET[state]:
+            if state == 0:
+                facets += 1
+            state = (state + 1) % 7
+        elif state > 0:
+            raise MeshError(f"{path}: facet {facets} is incomplete at line {numbers[i]}: expected "
+                            f"{_STL_FACET[state]!r}, found {key!r} (truncated or corrupt ASCII STL)")
+        else:
+            want = "'solid'" if state == -1 else "'facet' or 'endsolid'"
+            raise MeshError(f"{path}: line {numbers[i]}: expected {want}, found {key!r} (corrupt ASCII STL)")
+    end = numbers[-1] if numbers else len(lines)
+    if state > 0:
+        raise MeshError(f"{path}: facet {facets} is incomplete at line {end}: the file ends before its "
+                        f"{_STL_FACET[state]!r} (truncated ASCII STL)")
+    if state == 0:
+        raise MeshError(f"{path}: no 'endsolid' after facet {facets} at line {end}: the file ends early "
+                        "(truncated ASCII STL)")
+    if facets == 0:
+        raise MeshError(f"{path}: no triangles could be read (an ASCII STL of no facet)")
+    at = [i for i, key in enumerate(keys) if key == "vertex"]
+    try:
+        P = np.array([words[i][1].split() for i in at], dtype=np.float64)
+        if P.ndim != 2 or P.shape[1] != 3:
+            raise ValueError
+    except (ValueError, IndexError):
+        for i in at:
+            parts = words[i][1].split() if len(words[i]) > 1 else []
+            try:
+                if len(parts) != 3:
+                    raise ValueError
+                [float(x) for x in parts]
+            except ValueError:
+                raise MeshError(f"{path}: line {numbers[i]}: a vertex needs three numbers, got "
+                                f"{' '.join(parts)[:60]!r} (corrupt ASCII STL)") from None
+        raise  # pragma: no cover
+    return P
+
+
+def _read_obj(path):
+    """A Wavefront OBJ as a tensor mesh with the file's vertices, in the file's order.
+
+    Read: ``v x y z`` (and ``v x y z r g b``: colours, when every vertex has them), ``vt``,
+    ``vn`` and ``f`` with the index forms ``i``, ``i/t``, ``i//n``, ``i/t/n``; indices from 1,
+    negative ones counting back from the last element read; polygons fanned from their first
+    corner. Texture coordinates, when every corner of every face has one, go to the triangles:
+    ``triangle["texture_uvs"]`` (m, 3, 2), Open3D's layout. Normals (per corner in OBJ) are
+    checked, not kept. Comments, groups, objects, materials, smoothing groups, lines and points
+    are ignored. A malformed line (a ``v`` without three numbers, an index that is not an
+    integer, is 0 or out of range, a face of fewer than three corners) is a MeshError naming the
+    line. (Open3D's own reader splits the vertices at texture seams and merges coincident ones:
+    other vertices than the file's.)"""
+    import open3d as o3d
+
+    try:
+        text = path.read_bytes().decode("utf-8", errors="replace")
+    except OSError as e:
+        raise MeshError(f"cannot read {path}: {e.strerror}") from e
+    v, vt, f = [], [], []  # (line number, rest of the line); faces also: the counts so far
+    n_vn = 0
+    for number, line in enumerate(text.splitlines(), 1):
+        w = line.split(None, 1)
+        if not w:
+            continue
+        head, rest = w[0], (w[1] if len(w) > 1 else "")
+        if head == "v":
+            v.append((number, rest))
+        elif head == "f":
+            f.append((number, rest, len(v), len(vt), n_vn))
+        elif head == "vt":
+            vt.append((number, rest))
+        elif head == "vn":
+            n_vn += 1
+    if not v:
+        raise MeshError(f"{path}: no vertices ('v' lines) could be read (unreadable or empty OBJ)")
+    if not f:
+        raise MeshError(f"{path}: no triangles could be read (an OBJ without 'f' lines)")
+    V, colors = _obj_numbers(v, path, "v", (3, 4, 6, 7))
+    uv = None
+    if vt:
+        uv = _obj_numbers(vt, path, "vt", (2, 3, 1))[0]
+        uv = np.c_[uv, np.zeros(len(uv))] if uv.shape[1] == 1 else uv[:, :2]  # "vt u": v = 0
+    counts = np.fromiter((len(r.split()) for _, r, _, _, _ in f), dtype=np.int64, count=len(f))
+    if counts.min() < 3:
+        i = int(np.flatnonzero(counts < 3)[0])
+        raise MeshError(f"{path}: line {f[i][0]}: a face needs at least 3 corners, got {counts[i]}")
+    info = np.array([(number, nv, nt, nn) for number, _, nv, nt, nn in f], dtype=np.int64)
+    per = np.repeat(info, counts, axis=0)  # per corner: line, v, vt, vn counts so far
+    joined = " ".join(r for _, r, _, _, _ in f)
+    corners = joined.split()
+    fields = _obj_fields(joined, corners)
+    if fields is None:  # corners of different forms: one by one
+        parts = [c.split("/") for c in corners]
+        if max(len(q) for q in parts) > 3:
+            i = next(i for i, q in enumerate(parts) if len(q) > 3)
+            raise MeshError(f"{path}: line {per[i, 0]}: bad face corner {corners[i]!r} (use i, i/t, i//n or i/t/n)")
+        fields = [[q[j] if len(q) > j else "" for q in parts] for j in range(3)]
+    vi = _obj_indices(fields[0], per[:, 1], per[:, 0], corners, path, "vertex")
+    ti = None
+    has_t = np.array([t != "" for t in fields[1]], dtype=bool)
+    if has_t.any():
+        ti = _obj_indices([t or "1" for t in fields[1]], per[:, 2], per[:, 0], corners, path,
+                          "texture coordinate", check=has_t)
+    has_n = np.array([t != "" for t in fields[2]], dtype=bool)
+    if has_n.any():
+        _obj_indices([t or "1" for t in fields[2]], per[:, 3], per[:, 0], corners, path, "normal", check=has_n)
+    # fan each face from its first corner: corner j of face i is start[i] + j
+    start = np.r_[0, np.cumsum(counts)[:-1]]
+    tri_face = np.repeat(np.arange(len(counts)), counts - 2)
+    j = np.arange(len(tri_face)) - np.repeat(np.cumsum(counts - 2) - (counts - 2), counts - 2)
+    c = np.stack([start[tri_face], start[tri_face] + 1 + j, start[tri_face] + 2 + j], axis=1)
+    F = vi[c]
+    fanned = int(np.sum(counts > 3))
+    if fanned:
+        log.warning("%s: %d polygons with more than 3 corners triangulated (fan from their first corner)",
+                    path, fanned)
+    mesh = o3d.t.geometry.TriangleMesh(o3d.core.Tensor(V), o3d.core.Tensor(F))
+    if colors is not None:
+        mesh.vertex.colors = o3d.core.Tensor(colors)
+    if ti is not None:
+        if has_t.all():
+            mesh.triangle["texture_uvs"] = o3d.core.Tensor(np.ascontiguousarray(uv[ti[c]]))
+        else:
+            log.info("%s: texture coordinates on some face corners only: not kept", path)
+    return mesh
+
+
+def _obj_fields(joined, corners):
+    """The three index fields (v, vt, vn: lists of strings, "" where absent) of face corners all of
+    one form (``i``, ``i/t``, ``i//n`` or ``i/t/n``), split in bulk; None for mixed forms (or
+    text that is not ASCII), left to the corner-by-corner reading."""
+    k = len(corners)
+    if "/" not in joined:
+        return [corners, [""] * k, [""] * k]
+    if not joined.isascii():
+        return None
+    b = np.frombuffer(joined.encode("ascii"), np.uint8)
+    white = np.isin(b, np.frombuffer(b" \t\n\r\x0b\x0c\x1c\x1d\x1e\x1f", np.uint8))
+    start = np.flatnonzero(~white & np.r_[True, white[:-1]])
+    end = np.flatnonzero(~white & np.r_[white[1:], True]) + 1
+    if len(start) != k:  # pragma: no cover - split() and these boundaries agree on ASCII
+        return None
+    cs = np.r_[0, np.cumsum(b == 47)]  # "/"
+    per = cs[end] - cs[start]
+    if per.min() != per.max() or per[0] > 2:
+        return None
+    pair = np.r_[0, np.cumsum((b[:-1] == 47) & (b[1:] == 47)), 0]
+    doubles = int(pair[-2]) if len(b) > 1 else 0
+    if per[0] == 1 and doubles == 0:
+        vt = joined.replace("/", " ").split()
+        if len(vt) == 2 * k:
+            return [vt[0::2], vt[1::2], [""] * k]
+    elif per[0] == 2 and doubles == k:
+        vn = joined.replace("//", " ").split()
+        if len(vn) == 2 * k:
+            return [vn[0::2], [""] * k, vn[1::2]]
+    elif per[0] == 2 and doubles == 0:
+        vtn = joined.replace("/", " ").split()
+        if len(vtn) == 3 * k:
+            return [vtn[0::3], vtn[1::3], vtn[2::3]]
+    return None
+
+
+def _obj_numbers(rows, path, what, sizes):
+    """(k, c) float64 of the numbers of OBJ lines ``what`` (``c = sizes[0]``, or fewer when a line
+    has fewer), and for ``v`` with 6 or 7 numbers on every line their colours (else None)."""
+    try:
+        A = np.array([r.split() for _, r in rows], dtype=np.float64)
+        if A.ndim != 2 or A.shape[1] not in sizes:
+            raise ValueError
+    except ValueError:
+        A = None
+    if A is None:  # lines of different lengths, or a bad one: line by line, naming it
+        out = []
+        for number, rest in rows:
+            parts = rest.split()
+            try:
+                vals = [float(x) for x in parts]
+                if len(vals) not in sizes:
+                    raise ValueError
+            except ValueError:
+                raise MeshError(f"{path}: line {number}: '{what}' needs {' or '.join(map(str, sizes))} numbers, "
+                                f"got {rest.strip()[:60]!r} (malformed OBJ)") from None
+            out.append(vals[:sizes[0]])
+        width = min(len(r) for r in out)
+        return np.array([r[:width] for r in out], dtype=np.float64), None
+    if not np.all(np.isfinite(A)):
+        i = int(np.flatnonzero(~np.all(np.isfinite(A), axis=1))[0])
+        raise MeshError(f"{path}: line {rows[i][0]}: '{what}' has a NaN or infinite number (malformed OBJ)")
+    colors = A[:, 3:6].copy() if what == "v" and A.shape[1] in (6, 7) else None
+    return np.ascontiguousarray(A[:, :sizes[0]]), colors
+
+
+def _obj_indices(tokens, count, lines, corners, path, what, check=None):
+    """0-based int64 indices of OBJ index tokens (1-based; negative: from the end of the
+    elements read so far, ``count``), MeshError naming the line of a bad one."""
+    try:
+        idx = np.array(tokens, dtype=np.int64)
+    except (ValueError, OverflowError):
+        idx = None
+    if idx is None:
+        for i, t in enumerate(tokens):
+            try:
+                int(t)
+            except ValueError:
+                raise MeshError(f"{path}: line {lines[i]}: {what} index {t!r} (in {corners[i]!r}) is not an "
+                                "integer (malformed OBJ)") from None
+        raise MeshError(f"{path}: {what} indices beyond 64 bits (malformed OBJ)")
+    out = np.where(idx < 0, count + idx, idx - 1)
+    bad = (idx == 0) | (out < 0) | (out >= count)
+    if check is not None:
+        bad &= check
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise MeshError(f"{path}: line {lines[i]}: {what} index {tokens[i]} is out of range (1..{count[i]} "
+                        f"or -1..-{count[i]} at that line; 0 is not an OBJ index) (malformed OBJ)")
+    return out
 
 
 _PLY_SIZES = {"char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2,
@@ -691,8 +969,23 @@ def _read_ply(path):
         used |= {"red", "green", "blue"}
         if "colors" not in attrs:
             rgb = np.stack([vert["red"], vert["green"], vert["blue"]], 1)
-            scale = 255.0 if rgb.dtype == np.uint8 else (65535.0 if rgb.dtype == np.uint16 else 1.0)
-            attrs["colors"] = o3d.core.Tensor((rgb / scale).astype(np.float32))
+            raw = [c.split()[2] for c in ply.comments if c.startswith(_RAW_COLORS + " ") and len(c.split()) == 3]
+            restored = None
+            if raw:
+                try:
+                    restored = _restore(rgb, np.dtype(raw[-1]))
+                except TypeError:
+                    restored = None
+                if restored is None:
+                    log.warning("%s: ignoring header comment %r: red green blue (%s) do not hold %s values",
+                                path, f"{_RAW_COLORS} {raw[-1]}", rgb.dtype, raw[-1])
+            if restored is not None:
+                attrs["colors"] = o3d.core.Tensor(np.ascontiguousarray(restored))
+            elif rgb.dtype.kind == "f" and rgb.dtype.itemsize in (4, 8):  # the values themselves
+                attrs["colors"] = o3d.core.Tensor(np.ascontiguousarray(rgb.astype(rgb.dtype.newbyteorder("="))))
+            else:
+                scale = 255.0 if rgb.dtype == np.uint8 else (65535.0 if rgb.dtype == np.uint16 else 1.0)
+                attrs["colors"] = o3d.core.Tensor((rgb / scale).astype(np.float32))
     for nm in names:
         if nm in used:
             continue

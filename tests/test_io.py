@@ -488,7 +488,7 @@ def test_written_ply_uses_only_types_every_reader_reads(tmp_path, binary):
     types = {prop.name: str(prop).split()[1] for prop in PlyData.read(str(p))["vertex"].properties}
     assert set(types.values()) <= {"uchar", "int", "float", "double"}, types
     assert types["crit"] == types["i16"] == types["u16"] == "int" and types["flag"] == "uchar"
-    assert types["u32"] == types["big"] == "double" and types["red"] == "uchar"
+    assert types["u32"] == types["big"] == "double" and types["red"] == "float"  # colours not k/255
     _assert_exact(m.vertex, read_mesh(p).vertex)  # o3dheat's own reader: still exact
 
 
@@ -684,7 +684,7 @@ def test_binary_ply_is_plyfiles_own_bytes_and_reads_back_the_same_both_ways(tmp_
 
 def test_binary_stl_is_read_in_one_block_as_open3d_reads_it(tmp_path):
     """Same triangles (as coordinates) as Open3D's STL reader, every triangle with its own three
-    vertices; an ASCII STL is still read by Open3D."""
+    vertices; an ASCII STL is read (and checked) by o3dheat too."""
     legacy = o3d.geometry.TriangleMesh.create_torus(1.0, 0.4, 30, 12)
     legacy.compute_triangle_normals()
     path = tmp_path / "t.stl"
@@ -696,12 +696,216 @@ def test_binary_stl_is_read_in_one_block_as_open3d_reads_it(tmp_path):
     Vo, Fo = np.asarray(theirs.vertices), np.asarray(theirs.triangles)
     assert np.array_equal(V[F], Vo[Fo])  # the same corners, triangle by triangle
     ascii_path = tmp_path / "a.stl"  # Open3D writes no ASCII STL
-    corners = "".join("facet normal 0 0 1\n outer loop\n" + "".join(f"  vertex {x!r} {y!r} {z!r}\n" for x, y, z in t)
-                      + " endloop\nendfacet\n" for t in Vo[Fo].astype(np.float32).tolist())
-    ascii_path.write_text("solid t\n" + corners + "endsolid t\n")
-    assert o3dheat.io._read_binary_stl(ascii_path) is None
+    ascii_path.write_text(_ascii_stl(Vo[Fo].astype(np.float32)))
     a = o3dheat.io.read_geometry(ascii_path)
     assert len(a.triangle.indices) == len(legacy.triangles)
+    np.testing.assert_array_equal(a.vertex.positions.numpy(), Vo[Fo].reshape(-1, 3).astype(np.float32))
     (tmp_path / "empty.stl").write_bytes(bytes(84))  # a binary STL of no triangles
     with pytest.raises(o3dheat.MeshError, match="no triangles could be read"):
         o3dheat.io.read_geometry(tmp_path / "empty.stl")
+
+
+def _ascii_stl(T):
+    return "solid t\n" + "".join("facet normal 0 0 1\n outer loop\n" + "".join(
+        f"  vertex {x!r} {y!r} {z!r}\n" for x, y, z in t) + " endloop\nendfacet\n" for t in T.tolist()) + "endsolid t\n"
+
+
+def _sample(name):
+    import importlib.resources
+
+    return importlib.resources.files("pymeshlab") / "tests" / "sample_meshes" / name
+
+
+def _v_lines(path):
+    return np.array([line.split()[1:4] for line in path.read_text().splitlines() if line.startswith("v ")], float)
+
+
+def _write_binary_stl(path, V, F):
+    """A binary STL by hand (numpy): 80-byte header, count, 50 bytes per triangle."""
+    T = V[F].astype(np.float32)
+    n = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+    rec = np.zeros(len(F), dtype=[("n", "<f4", (3,)), ("c", "<f4", (3, 3)), ("a", "<u2")])
+    rec["n"], rec["c"] = n, T
+    path.write_bytes(bytes(80) + np.uint32(len(F)).tobytes() + rec.tobytes())
+
+
+def test_stl_and_obj_of_one_surface_give_one_answer(tmp_path, caplog):
+    """cow.obj as read and as binary STL: the same spectrum and Euler characteristic (the OBJ
+    went through Open3D, which merged its two vertices 45 and 2904 into a pinched one: 2.3888
+    against the STL's 2.3241, chi 1 against 2). The STL's weld says it kept a pair apart."""
+    obj = read_mesh(_sample("cow.obj"))
+    V, F = o3dheat.as_arrays(obj)
+    assert np.array_equal(V, _v_lines(_sample("cow.obj")))  # the file's float64 values
+    V32 = V.astype(np.float32).astype(np.float64)  # what an STL holds: compare like with like
+    _write_binary_stl(tmp_path / "cow.stl", V, F)
+    stl = read_mesh(tmp_path / "cow.stl")
+    obj32 = (V32, F)
+    ro, rs = o3dheat.check_mesh(obj32), o3dheat.check_mesh(stl)
+    assert ro.euler_characteristic == rs.euler_characteristic == 2
+    assert ro.non_manifold_vertices == rs.non_manifold_vertices == 0 and rs.split_vertices == 1
+    assert (ro.components, ro.boundary_loops) == (rs.components, rs.boundary_loops)
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        b = o3dheat.eigensolve(stl, k=5).eigenvalues
+    assert "1 vertices coincide with another but are kept apart (split" in caplog.text
+    a = o3dheat.eigensolve(obj32, k=5).eigenvalues
+    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(o3dheat.eigensolve(obj, k=5).eigenvalues, a, rtol=1e-5, atol=1e-9)
+    assert abs(a[1] - 2.3241) < 1e-3
+
+
+@pytest.mark.parametrize("name", ["bunny10k_textured.obj", "bunny.obj", "cow.obj", "airplane.obj"])
+def test_obj_keeps_the_files_vertices_in_order(name):
+    """Open3D's reader split bunny10k_textured's 5051 vertices at texture seams (6451) and
+    reordered bunny.obj's."""
+    m = read_mesh(_sample(name))
+    want = _v_lines(_sample(name))
+    np.testing.assert_array_equal(m.vertex.positions.numpy(), want)
+    F = m.triangle.indices.numpy()
+    n_f = sum(1 for line in _sample(name).read_text().splitlines() if line.startswith("f "))
+    assert F.dtype == np.int64 and len(F) >= n_f and F.max() < len(want)
+    if name == "bunny10k_textured.obj":
+        uv = m.triangle["texture_uvs"].numpy()
+        assert uv.shape == (len(F), 3, 2) and 0 <= uv.min() and uv.max() <= 1
+        # against pymeshlab's loader (same positions and faces, wedge texture coordinates)
+        pymeshlab = pytest.importorskip("pymeshlab")
+        ms = pymeshlab.MeshSet()
+        ms.load_new_mesh(str(_sample(name)))
+        pm = ms.current_mesh()
+        np.testing.assert_allclose(pm.vertex_matrix(), want, rtol=0, atol=1e-6)
+        np.testing.assert_array_equal(pm.face_matrix(), F)
+
+
+def test_obj_forms_negative_indices_polygons_and_comments(tmp_path, caplog):
+    text = """# a comment
+mtllib none.mtl
+o square
+v 0 0 0
+v 1 0 0
+v 1 1 0 0.5 0.25 1.0
+v 0 1 0
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+vn 0 0 1
+g top
+usemtl m
+s off
+f 1/1/1 2/2/1 3/3/1 4/4/1
+v 0 0 1
+f -5/-4/-1 -4/-3/-1 -1/-1/-1
+l 1 2
+"""
+    (tmp_path / "q.obj").write_text(text)
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        m = read_mesh(tmp_path / "q.obj")
+    assert "1 polygons with more than 3 corners triangulated" in caplog.text
+    assert m.triangle.indices.numpy().tolist() == [[0, 1, 2], [0, 2, 3], [0, 1, 4]]
+    assert len(m.vertex.positions) == 5 and "colors" not in m.vertex  # not every v has colours
+    uv = m.triangle["texture_uvs"].numpy()
+    assert uv[1].tolist() == [[0, 0], [1, 1], [0, 1]] and uv[2].tolist() == [[0, 0], [1, 0], [0, 1]]
+    (tmp_path / "c.obj").write_text("v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nf 1//1 2//1 3//1\nvn 0 0 1\n"
+                                    .replace("vn 0 0 1\n", "").replace("f ", "vn 0 0 1\nf "))
+    c = read_mesh(tmp_path / "c.obj")
+    assert c.vertex.colors.numpy().tolist() == np.eye(3).tolist() and "texture_uvs" not in c.triangle
+
+
+@pytest.mark.parametrize("body,line,what", [
+    ("v 0 0 0\nv 1 0\nv 0 1 0\nf 1 2 3\n", 2, "'v' needs"),
+    ("v 0 0 0\nv 1 0 x\nv 0 1 0\nf 1 2 3\n", 2, "'v' needs"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2\n", 5, "at least 3 corners"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", 4, "vertex index 4 is out of range"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", 4, "vertex index 0 is out of range"),
+    ("v 0 0 0\nv 1 0 0\nf 1 2 -3\nv 0 1 0\n", 3, "vertex index -3 is out of range"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3.5\n", 4, "vertex index '3.5'"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/2 3/1\n", 5, "texture coordinate index 2 is out of range"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n", 4, "bad face corner"),
+])
+def test_malformed_obj_names_the_line(tmp_path, body, line, what):
+    (tmp_path / "bad.obj").write_text(body)
+    with pytest.raises(o3dheat.MeshError, match=f"line {line}: .*{what}" if "line" not in what else what):
+        read_mesh(tmp_path / "bad.obj")
+    (tmp_path / "none.obj").write_text("# nothing\nv 0 0 0\n")
+    with pytest.raises(o3dheat.MeshError, match="no triangles"):
+        read_mesh(tmp_path / "none.obj")
+
+
+def test_truncated_stl_is_refused(tmp_path):
+    V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20))
+    text = _ascii_stl(V[F].astype(np.float32))
+    (tmp_path / "ok.stl").write_text(text)
+    assert len(read_mesh(tmp_path / "ok.stl").triangle.indices) == len(F)
+    lines = text.splitlines(keepends=True)
+    cut = 1 + 7 * 122 + 4  # facet 123: the file ends after two of its vertices (line cut)
+    (tmp_path / "cut.stl").write_text("".join(lines[:cut]))
+    with pytest.raises(o3dheat.MeshError, match=f"facet 123 is incomplete at line {cut}: the file ends"):
+        read_mesh(tmp_path / "cut.stl")
+    (tmp_path / "end.stl").write_text("".join(lines[:-1]))  # every facet, no endsolid
+    with pytest.raises(o3dheat.MeshError, match="no 'endsolid' after facet"):
+        read_mesh(tmp_path / "end.stl")
+    bad = lines[:]
+    bad[10] = "  vertex 1 2\n"
+    (tmp_path / "bad.stl").write_text("".join(bad))
+    with pytest.raises(o3dheat.MeshError, match="line 11: a vertex needs three numbers"):
+        read_mesh(tmp_path / "bad.stl")
+    _write_binary_stl(tmp_path / "b.stl", V, F)
+    data = (tmp_path / "b.stl").read_bytes()
+    (tmp_path / "b.stl").write_bytes(data[:-20])
+    with pytest.raises(o3dheat.MeshError, match=f"declares {len(F)} triangles.*truncated"):
+        read_mesh(tmp_path / "b.stl")
+    lines[7 * 5] = "facet normal 0 0 1\n"  # facet 5's endfacet replaced: facet 6 starts early
+    (tmp_path / "early.stl").write_text("".join(lines))
+    with pytest.raises(o3dheat.MeshError, match=f"facet 5 is incomplete at line {1 + 7 * 5}: expected 'endfacet'"):
+        read_mesh(tmp_path / "early.stl")
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_ply_float_face_indices_must_be_integers(tmp_path, binary):
+    from plyfile import PlyData, PlyElement
+
+    vert = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+    for values, ok in [([[0, 1, 2], [1, 3, 2]], True), ([[0, 1, 2], [0.5, 3, 2]], False)]:
+        face = np.empty(2, dtype=[("vertex_indices", "f4", (3,))])
+        face["vertex_indices"] = values
+        path = tmp_path / "f.ply"
+        PlyData([PlyElement.describe(vert, "vertex"), PlyElement.describe(face, "face")], text=not binary).write(str(path))
+        if ok:
+            assert read_mesh(path).triangle.indices.numpy().tolist() == values
+        else:
+            with pytest.raises(o3dheat.MeshError, match="face 1 has the vertex index 0.5, not an integer"):
+                read_mesh(path)
+
+
+@pytest.mark.parametrize("value", ["no", "False", 0, 1, None, np.array([True])])
+def test_flags_must_be_bools(tmp_path, mesh, value):
+    for kw in ("binary", "overwrite"):
+        with pytest.raises(o3dheat.MeshError, match=f"{kw} must be True or False"):
+            write_mesh(tmp_path / "m.ply", mesh, **{kw: value})
+    assert not list(tmp_path.iterdir())
+    write_mesh(tmp_path / "m.ply", mesh, binary=np.bool_(False))
+
+
+@pytest.mark.parametrize("colors,stored", [
+    (np.array([[0, 1, 2], [255, 128, 7]] * 21, np.float32)[:42] / np.float32(255), "uchar"),
+    (np.random.default_rng(2).random((42, 3)).astype(np.float32), "float"),
+    (np.random.default_rng(3).random((42, 3)), "double"),
+    (np.random.default_rng(4).integers(0, 256, (42, 3)).astype(np.uint8), "uchar"),
+])
+@pytest.mark.parametrize("binary", [True, False])
+def test_colours_are_stored_once(tmp_path, colors, stored, binary):
+    """Colours that were not multiples of 1/255 were stored twice: red green blue and o3dheat_colors_*."""
+    from plyfile import PlyData
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 5)  # 42 vertices
+    m.vertex.colors = o3d.core.Tensor(colors)
+    write_mesh(tmp_path / "c.ply", m, binary=binary)
+    props = {p.name: str(p).split()[1] for p in PlyData.read(str(tmp_path / "c.ply"))["vertex"].properties}
+    assert sorted(props) == ["blue", "green", "red", "x", "y", "z"] and props["red"] == stored
+    back = read_mesh(tmp_path / "c.ply").vertex.colors.numpy()
+    assert back.dtype == colors.dtype
+    np.testing.assert_array_equal(back, colors)
+    if stored in ("uchar", "float"):  # what other readers see: the colour in [0, 1]
+        pc = o3d.t.io.read_point_cloud(str(tmp_path / "c.ply")).point.colors.numpy()
+        if colors.dtype == np.float32:
+            np.testing.assert_allclose(pc.astype(np.float64) / (255.0 if stored == "uchar" else 1.0), colors,
+                                       atol=1e-7)
