@@ -271,9 +271,9 @@ class Site:
         values = np.ascontiguousarray(values)
         if len(values) != self.n:  # pragma: no cover - a filter bug
             raise AssertionError(f"{name}: {len(values)} rows for {self.n} vertices")
-        from o3dheat.filters import check_writable
+        from o3dheat.filters import attribute_columns, check_writable
 
-        check_writable(name, values.shape[1:])
+        check_writable(name, values.shape[1:], attribute_columns(self.out))
         self.attrs[name] = self.o3d.core.Tensor(values)
 
     def result(self):

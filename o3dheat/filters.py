@@ -554,7 +554,12 @@ PLY_RESERVED = ("x", "y", "z", "nx", "ny", "nz", "red", "green", "blue")
 _OUTPUT_NAME = re.compile(r"[!-~]+\Z")  # printable ASCII, no whitespace: one PLY header token (o3dheat.io)
 
 
-def check_writable(name, columns=None):
+def _ply_properties(name, count):
+    """The PLY properties o3dheat's writer stores an attribute of ``count`` columns under."""
+    return [name] if count == 1 else [f"{name}_{j}" for j in range(count)]
+
+
+def check_writable(name, columns=None, attributes=None):
     """Refuse an output that cannot be written, with a MeshError naming it and why: the one check
     of every filter's outputs, run by :meth:`Chain.check` on what each ``plan`` says it writes,
     by the built-in filters before their work (their plan) and when they write.
@@ -571,6 +576,10 @@ def check_writable(name, columns=None):
     columns : int, tuple of int or None
         The output's columns (a ``plan``'s count) or its trailing shape (``values.shape[1:]``);
         None: the name only.
+    attributes : dict or None
+        The geometry's other attributes and their column counts (:func:`attribute_columns`): the
+        output's PLY properties (``name``, or ``name_0 ..`` for several columns) may not be one of
+        theirs (``a_0`` beside a 3-column ``a``).
 
     Examples
     --------
@@ -604,6 +613,15 @@ def check_writable(name, columns=None):
         got = f"shape (n, {', '.join(map(str, trailing))})" if len(trailing) > 1 else \
             f"{count} column" + ("" if count == 1 else "s")
         raise MeshError(f"output {name!r} must have shape ({want}) (Open3D's {name}), got {got}: rename it")
+    if attributes:
+        mine = set(_ply_properties(name, count))
+        for other, c in attributes.items():
+            if other == name or other in PROTECTED or other in SHAPED:  # overwritten / stored as x y z ...
+                continue
+            clash = sorted(mine.intersection(_ply_properties(other, int(c))))
+            if clash:
+                raise MeshError(f"output {name!r} ({count} column{'s' if count != 1 else ''}) would be stored "
+                                f"as PLY property {clash[0]!r}, which attribute {other!r} has: rename it")
 
 
 def check_step(step, columns):
@@ -632,9 +650,11 @@ def check_step(step, columns):
     if plan is None:
         return None
     written = plan(dict(columns))
+    after = dict(columns)
     for name, count in written.items():
-        check_writable(name, count)
-    return {**columns, **written}
+        check_writable(name, count, after)
+        after[name] = count
+    return after
 
 
 def _plan_of(step):

@@ -489,7 +489,7 @@ _ATTRS = ["height", "positions", "hks", "height_smooth", "nothing", "mean_curvat
           "out"]
 _COLUMNS = st.sampled_from([None, None, 0, -1, 2, 5])
 _TIMES = st.sampled_from([None, (0.01,), (0.01, 0.1)])
-_OUT = st.sampled_from([None, None, "out", "positions", "height"])
+_OUT = st.sampled_from([None, None, "out", "positions", "height", "colors", "normals", "x", "my out", "hks_1"])
 
 
 def _with_output(name, params, out):
@@ -744,3 +744,23 @@ def test_writable_outputs_still_written(tmp_path):
     o3dheat.io.write_mesh(tmp_path / "out.ply", chain(mesh))
     back = o3dheat.io.read_mesh(tmp_path / "out.ply")
     assert {"colors", "alpha", "h-2.v1"} <= set(back.vertex)
+
+
+def test_outputs_whose_ply_properties_collide_are_refused(monkeypatch):
+    """PLY stores a 3-column attribute a as a_0 a_1 a_2: an attribute a_1 beside it cannot be written."""
+    from o3dheat import spectrum
+
+    monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("an eigensolve ran"))
+    mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6)
+    grown = flt.apply(mesh, "scalar", kind="noise", attribute="positions", output="p")  # (n, 3): p_0 p_1 p_2
+    with pytest.raises(MeshError, match=r"step 2 \(scalar\): output 'p_1' \(1 column\) would be stored as PLY "
+                                        r"property 'p_1', which attribute 'p' has: rename it"):
+        flt.Chain([("scalar", {"kind": "noise", "attribute": "positions", "output": "p"}),
+                   ("scalar", {"kind": "height", "output": "p_1"})]).check(mesh)
+    with pytest.raises(MeshError, match=r"output 'p_1' \(1 column\) would be stored as PLY property 'p_1'"):
+        flt.apply(grown, "scalar", kind="height", output="p_1")
+    with pytest.raises(MeshError, match=r"output 'h' \(2 columns\) would be stored as PLY property 'h_1', "
+                                        r"which attribute 'h_1' has"):
+        flt.apply(flt.apply(mesh, "scalar", output="h_1"), "hks", k=8, scales=2, output="h")
+    again = flt.apply(grown, "scalar", kind="height", output="p")  # the same name: replaced, not a collision
+    assert again.vertex["p"].shape == (len(mesh.vertex.positions),)
