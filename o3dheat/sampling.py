@@ -30,7 +30,7 @@ from .mesh import (_degenerate, _non_manifold_edge_faces, _non_manifold_vertex_m
                    repair)
 
 __all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
-           "reconstruct", "transfer", "nearest", "point_arrays"]
+           "reconstruct", "transfer", "nearest", "point_arrays", "MIN_FACES", "REMESH_MAX_FACES"]
 
 log = logging.getLogger("o3dheat")
 
@@ -89,8 +89,12 @@ class Resampled:
         return f"Resampled({self.kind}, {self.params}, vertices={len(self.V)}, faces={len(self.F)})"
 
 
+#: the fewest faces a resampling may leave (a tetrahedron's)
+MIN_FACES = 4
+
+
 def _check_result(V, F, kind, params):
-    if len(F) < 4 or len(V) < 4:
+    if len(F) < MIN_FACES or len(V) < 4:
         raise MeshError(f"{kind} with {params} left {len(F)} faces: choose a milder setting")
 
 
@@ -127,14 +131,21 @@ def decimate(mesh, reduction=0.7, target_faces=None):
     ----------
     mesh : Open3D mesh or (V, F)
     reduction : float in [0, 1)
-        Fraction of the faces to remove.
+        Fraction of the faces to remove; at least :data:`MIN_FACES` faces must remain.
     target_faces : int, optional
-        Instead of ``reduction``: the number of faces to keep (no-op when the mesh has fewer).
+        Instead of ``reduction``: the number of faces to keep (>= :data:`MIN_FACES`; no-op when
+        the mesh has fewer).
 
     Returns
     -------
     Resampled
         With ``vertex_map``: source vertex -> the decimated vertex it collapsed into.
+
+    Raises
+    ------
+    MeshError
+        A reduction outside [0, 1) or one that would leave fewer than :data:`MIN_FACES` faces (a
+        closed surface needs 4), a ``target_faces`` that is not an integer >= 4.
 
     Examples
     --------
@@ -148,17 +159,24 @@ def decimate(mesh, reduction=0.7, target_faces=None):
 
     V, F = as_arrays(mesh)
     if target_faces is not None:
+        target_faces = checks.count(target_faces, "target_faces", minimum=MIN_FACES, maximum=2**62)
         if target_faces >= len(F):
             return Resampled(V, F, "decimate", {"target_faces": target_faces}, np.arange(len(V)))
         reduction = 1.0 - target_faces / len(F)
-    if not 0.0 <= reduction < 1.0:
-        raise MeshError(f"reduction must lie in [0, 1), got {reduction}")
+    if isinstance(reduction, bool) or not isinstance(reduction, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= reduction < 1.0:
+        raise MeshError(f"reduction must be a number in [0, 1), got {reduction!r}")
     params = {"reduction": float(reduction)}
+    left = int(round(len(F) * (1.0 - reduction)))
+    if left < MIN_FACES:
+        raise MeshError(f"decimate: reduction={reduction:g} of {len(F)} faces would leave {left}, fewer than "
+                        f"{MIN_FACES}: use a reduction of at most {1 - MIN_FACES / len(F):.4g}, or target_faces")
     if reduction == 0:
         return Resampled(V, F, "decimate", params, np.arange(len(V)))
     _, _, collapses = fast_simplification.simplify(V, F.astype(np.int32), target_reduction=float(reduction),
                                                    return_collapses=True)
     V2, F2, vmap = fast_simplification.replay_simplification(V, F.astype(np.int32), collapses)
+    _check_result(V2, F2, "decimate", params)  # (fast-simplification may remove more than asked)
     V2, F2, vmap = _clean(np.asarray(V2, np.float64), np.asarray(F2, np.int64), np.asarray(vmap, np.int64))
     _check_result(V2, F2, "decimate", params)
     return Resampled(V2, F2, "decimate", params, vmap)
@@ -212,7 +230,32 @@ def _from_meshset(ms, kind, params):
     return Resampled(V, F, kind, params)
 
 
-def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None):
+#: the default bound on the faces a remeshing may make (:func:`remesh`, :func:`anisotropic`):
+#: pymeshlab made about 5,000 faces a second here (a unit sphere at edge length 0.02: 72k faces in
+#: 13 s, 2026-12), so a million faces is minutes of work that cannot be interrupted
+REMESH_MAX_FACES = 1_000_000
+
+
+def _faces_at(area, length):
+    """The faces of an ``area`` covered by equilateral triangles of side ``length``."""
+    return area / (np.sqrt(3) / 4 * length**2)
+
+
+def _bound_faces(faces, max_faces, what):
+    """Refuse, before pymeshlab starts, a remeshing estimated to make more than ``max_faces``
+    faces: pymeshlab gives no estimate and cannot be interrupted."""
+    max_faces = checks.count(max_faces, "max_faces", maximum=2**62)
+    if faces > max_faces:
+        raise MeshError(f"{what} would make about {faces:.3g} faces (the area over an equilateral triangle's "
+                        f"at the target edge length), more than max_faces={max_faces}: use a longer edge length, "
+                        "or raise max_faces")
+
+
+def _area(V, F):
+    return 0.5 * float(np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1).sum())
+
+
+def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None, max_faces=REMESH_MAX_FACES):
     """Isotropic explicit remeshing (pymeshlab): a uniform sampling of the same surface.
 
     Parameters
@@ -225,10 +268,19 @@ def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None):
         Instead of ``target_edge_length``: a multiple of the mesh's mean edge length (scale-free,
         for studies over meshes of different sizes). With neither given: ``edge_factor=1`` (a
         uniform sampling at the mean edge length).
+    max_faces : int
+        Refuse, before any work, a remeshing estimated to make more faces (the surface's area over
+        an equilateral triangle's at the target length); default :data:`REMESH_MAX_FACES`.
 
     Returns
     -------
     Resampled
+
+    Raises
+    ------
+    MeshError
+        Bad parameters, or an estimate above ``max_faces`` (e.g. ``target_edge_length=1e-3`` on a
+        unit sphere: about 29 million faces).
 
     Examples
     --------
@@ -253,6 +305,7 @@ def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None):
     diag = float(np.linalg.norm(np.ptp(V, axis=0)))
     if not (np.isfinite(L) and 0 < L < diag):
         raise MeshError(f"target_edge_length must lie in (0, {diag:.4g}) (the bounding-box diagonal), got {L}")
+    _bound_faces(_faces_at(_area(V, F), L), max_faces, f"remesh with target_edge_length={L:.4g}")
     ms, pymeshlab = _meshset(V, F)
     _isotropic(ms, pymeshlab, L, int(iterations), False)
     params = {"target_edge_length": L, "iterations": int(iterations)}
@@ -261,7 +314,7 @@ def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None):
     return _from_meshset(ms, "remesh", params)
 
 
-def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6):
+def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6, max_faces=REMESH_MAX_FACES):
     """A strongly non-uniform sampling: the half ``x_axis < median`` remeshed coarse, the other fine.
 
     Parameters
@@ -273,6 +326,8 @@ def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6):
         0, 1 or 2: the axis that splits the surface.
     iterations : int
         Remeshing iterations per half.
+    max_faces : int
+        Refuse, before any work, a remeshing estimated to make more faces (as :func:`remesh`).
 
     Returns
     -------
@@ -291,10 +346,17 @@ def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6):
     V, F = as_arrays(mesh)
     if axis not in (0, 1, 2):
         raise MeshError(f"axis must be 0, 1 or 2, got {axis}")
-    if not (coarse > 0 and fine > 0):
-        raise MeshError("coarse and fine must be positive")
+    try:
+        positive = bool(np.isfinite(coarse) and np.isfinite(fine) and coarse > 0 and fine > 0)
+    except TypeError:
+        positive = False
+    if isinstance(coarse, bool) or isinstance(fine, bool) or not positive:
+        raise MeshError(f"coarse and fine must be positive numbers, got {coarse!r} and {fine!r}")
     mean_edge = float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
     cut = float(np.median(V[:, axis]))
+    below = V[F, axis].mean(axis=1) < cut
+    faces = sum(_faces_at(_area(V, F[half]), length * mean_edge) for half, length in ((below, coarse), (~below, fine)))
+    _bound_faces(faces, max_faces, f"anisotropic with coarse={coarse:g}, fine={fine:g}")
     c = "xyz"[axis]
     ms, pymeshlab = _meshset(V, F)
     for cond, length in ((f"({c}0+{c}1+{c}2)/3 < {cut!r}", coarse), (f"({c}0+{c}1+{c}2)/3 >= {cut!r}", fine)):

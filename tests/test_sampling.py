@@ -257,3 +257,46 @@ def test_jitter_random_disks_never_fold(seed, n, lift, amount, jseed):
     assert flips == 0 and area >= 0.1 * (1 - 1e-9) and projected >= 0.1 * (1 - 1e-9)
     assert r.params["moved_max"] == pytest.approx(moved_max, rel=1e-12, abs=1e-15)
     assert np.array_equal(jitter((V, F), amount, jseed).V, r.V)
+
+
+def test_a_remeshing_too_fine_is_refused_at_once_with_its_estimate():
+    import subprocess
+    import sys
+
+    import open3d as o3d
+
+    from o3dheat import sampling
+    from o3dheat.sampling import anisotropic, remesh
+
+    # in a process of its own: pymeshlab, once started, cannot be interrupted (minutes of work)
+    script = ("import open3d as o3d, o3dheat\n"
+              "from o3dheat.sampling import remesh\n"
+              "try:\n"
+              "    remesh(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20), target_edge_length=1e-3)\n"
+              "except o3dheat.MeshError as e:\n"
+              "    print(e)\n")
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    # 4 pi / (sqrt(3)/4 1e-6) faces
+    assert "would make about 2.89e+07 faces" in run.stdout and "max_faces=1000000" in run.stdout, run.stderr
+    sphere = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
+    with pytest.raises(o3dheat.MeshError, match="anisotropic .* more than max_faces"):
+        anisotropic(sphere, fine=0.001)
+    assert sampling.REMESH_MAX_FACES == 1_000_000
+    with pytest.raises(o3dheat.MeshError, match="max_faces"):
+        remesh(sphere, 0.1, max_faces=100)  # about 2,900 faces
+    assert len(remesh(sphere, 0.1, max_faces=5000).F) > 2000  # the bound raised
+    with pytest.raises(o3dheat.MeshError, match="max_faces must be"):
+        remesh(sphere, 0.1, max_faces=-1)
+
+
+def test_decimating_to_fewer_than_4_faces_is_a_clear_error():
+    import open3d as o3d
+
+    sphere = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)  # 1520 faces
+    with pytest.raises(o3dheat.MeshError, match="would leave 0, fewer than 4: use a reduction of at most 0.9974"):
+        decimate(sphere, reduction=0.9999)
+    assert len(decimate(sphere, target_faces=4).F) == 4
+    for bad in ({"target_faces": 3}, {"target_faces": -5}, {"target_faces": 2.5}, {"reduction": "0.5"},
+                {"reduction": True}, {"reduction": -0.1}):
+        with pytest.raises(o3dheat.MeshError, match="target_faces must be|reduction must be"):
+            decimate(sphere, **bad)
