@@ -57,7 +57,7 @@ from scipy.sparse.csgraph import connected_components
 from . import checks
 from .errors import MeshError
 
-__all__ = ["as_arrays", "mesh_of", "check_mesh", "MeshReport", "prepare", "Prepared", "face_areas", "repair", "Repaired"]
+__all__ = ["as_arrays", "mesh_of", "check_points", "check_mesh", "MeshReport", "prepare", "Prepared", "face_areas", "repair", "Repaired"]
 
 log = logging.getLogger("o3dheat")
 
@@ -123,6 +123,64 @@ def _pair(mesh):
                             f"got {type(mesh).__name__}")
         pair = (checks.values(mesh[0]), checks.values(mesh[1]))
     return pair
+
+
+def check_points(P, planar=True, min_points=4, what="the point cloud"):
+    """Refuse, with a MeshError that names the problem, a point cloud no surface or point-cloud
+    operator can be built on -- before Qhull, geometry-central or Open3D fail on it with their
+    own messages (``QH6239 Qhull precision error``, ``GC_SAFETY_ASSERT FAILURE``, ...).
+
+    Parameters
+    ----------
+    P : (n, 3) array_like
+    planar : bool
+        Whether points in one plane are acceptable (a flat patch: robust point-cloud Laplacians
+        take it; a reconstruction of a closed surface does not).
+    min_points : int
+        The fewest distinct points accepted (a k-nearest-neighbour operator needs ``k + 1``).
+    what : str
+        What to call the points in messages.
+
+    Returns
+    -------
+    (n, 3) float64 ndarray
+        The points, checked: finite, at least ``min_points`` distinct ones, not all coincident,
+        not all on one line, and (``planar=False``) not all in one plane -- relative to the
+        cloud's extent, at 1e-12.
+
+    Examples
+    --------
+    >>> import numpy as np, o3dheat.mesh as m
+    >>> m.check_points(np.random.default_rng(0).random((10, 3))).shape
+    (10, 3)
+    >>> m.check_points(np.c_[np.arange(10.0), np.zeros(10), np.zeros(10)])
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: the point cloud's 10 points lie on one line: no surface passes through them
+    """
+    try:
+        P = np.asarray(P, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise MeshError(f"{what}: the points must be numbers ({e})") from None
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise MeshError(f"{what}: the points must have shape (n, 3), got {P.shape}")
+    if not np.all(np.isfinite(P)):
+        raise MeshError(f"{what} has NaN or infinite coordinates")
+    n = len(P)
+    distinct = int(np.sum(_first_copies(P) == np.arange(n))) if n else 0
+    if distinct == 1 or (n and np.all(P == P[0])):
+        raise MeshError(f"{what}'s {n} points all coincide: no surface passes through them")
+    if distinct < min_points:
+        raise MeshError(f"{what} has {distinct} distinct points ({n} in all): at least {min_points} are "
+                        "needed")
+    s = np.linalg.svd((P - P.mean(axis=0)) / max(float(np.max(np.ptp(P, axis=0))), np.finfo(float).tiny),
+                      compute_uv=False)
+    if s[1] <= 1e-12 * s[0]:
+        raise MeshError(f"{what}'s {n} points lie on one line: no surface passes through them")
+    if not planar and s[2] <= 1e-12 * s[0]:
+        raise MeshError(f"{what}'s {n} points lie in one plane: a reconstruction needs points around a "
+                        "volume (for a flat patch, use a point-cloud operator or triangulate it)")
+    return P
 
 
 def _degenerate(F):

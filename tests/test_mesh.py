@@ -525,3 +525,39 @@ def test_mesh_likes_are_meshes_everywhere():
     np.testing.assert_array_equal(o3dheat.as_arrays(Wrapper(Wrapper((V2, F2))))[0], V2)
     with pytest.raises(o3dheat.MeshError, match="mesh` attribute"):
         o3dheat.as_arrays(Wrapper(None))
+
+
+_RNG = np.random.default_rng(5)
+_DEGENERATE_CLOUDS = {
+    "collinear": (np.c_[np.linspace(0, 1, 50), np.zeros(50), np.zeros(50)], "lie on one line"),
+    "coincident": (np.ones((50, 3)), "all coincide"),
+    "three points": (np.eye(3), "3 distinct points"),
+    "nearly collinear": (np.c_[np.linspace(0, 1, 50), 1e-15 * _RNG.random(50), np.zeros(50)], "one line"),
+    "few distinct": (np.repeat(np.eye(3), 10, axis=0), "3 distinct points \\(30 in all\\)"),
+}
+
+
+@pytest.mark.parametrize("case", list(_DEGENERATE_CLOUDS))
+def test_degenerate_point_clouds_are_named(case):
+    """They ended in raw Qhull (QH6239) or geometry-central (GC_SAFETY_ASSERT) errors."""
+    from o3dheat.mesh import check_points
+
+    P, why = _DEGENERATE_CLOUDS[case]
+    for planar in (True, False):
+        with pytest.raises(o3dheat.MeshError, match=why):
+            check_points(P, planar=planar)
+
+
+def test_a_flat_patch_is_a_surface_for_point_operators_not_for_reconstruction():
+    from o3dheat.mesh import check_points
+
+    flat = np.c_[_RNG.random((200, 2)), np.zeros(200)]
+    np.testing.assert_array_equal(check_points(flat), flat)
+    with pytest.raises(o3dheat.MeshError, match="lie in one plane"):
+        check_points(flat, planar=False)
+    with pytest.raises(o3dheat.MeshError, match="NaN"):
+        check_points(np.r_[flat, [[np.nan, 0, 0]]])
+    with pytest.raises(o3dheat.MeshError, match="at least 31"):
+        check_points(flat[:20], min_points=31)
+    sphere = _RNG.standard_normal((100, 3))
+    assert check_points(sphere, planar=False).shape == (100, 3)
