@@ -32,7 +32,8 @@ Execution (:mod:`o3dheat.cluster`): on a local Dask cluster by default (one sing
 process per core), in-process with ``scheduler="sequential"``, on a running cluster by address or
 ``distributed.Client`` (its workers must see the input and output folders at the same paths). On
 Dask the largest files start first; a script that starts a local cluster must be importable
-(``if __name__ == "__main__":``), as Dask's worker processes import it. BLAS runs on one thread in every mode, and o3dheat's own
+(``if __name__ == "__main__":``), as Dask's worker processes import it (unguarded, the cluster is
+refused before it starts: :func:`o3dheat.cluster.unguarded_main`). BLAS runs on one thread in every mode, and o3dheat's own
 threads (:mod:`o3dheat.parallel`: all cores in-process, one per Dask worker) do not change
 results, so the outputs are identical bit for bit whatever the scheduler; they may differ in the
 last bits from ``o3dheat apply`` when BLAS there runs on several threads.

@@ -30,7 +30,7 @@ import sys
 
 from .errors import MeshError
 
-__all__ = ["local_cluster", "connect", "session", "register_warm_up", "progress_bar", "task_error"]
+__all__ = ["local_cluster", "connect", "session", "register_warm_up", "progress_bar", "task_error", "unguarded_main"]
 
 _TRIM_ENV = "MALLOC_TRIM_THRESHOLD_"
 _TRIM = f"distributed.nanny.pre-spawn-environ.{_TRIM_ENV}"
@@ -57,6 +57,13 @@ def local_cluster(n_workers=None, pin=True):
     distributed.LocalCluster
         Close it (or use it in a ``with`` block) when done.
 
+    Raises
+    ------
+    MeshError
+        Called from the top-level code of a script outside ``if __name__ == "__main__":``: Dask
+        starts its workers by running the script again (multiprocessing's "spawn"), and each
+        would start a cluster of its own (:func:`unguarded_main`). Nothing is started then.
+
     Examples
     --------
     >>> from o3dheat.cluster import local_cluster
@@ -71,6 +78,12 @@ def local_cluster(n_workers=None, pin=True):
     n = (os.cpu_count() or 1) if n_workers is None else n_workers
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise MeshError(f"n_workers must be a positive integer, got {n_workers!r}")
+    script = unguarded_main() if dask.config.get("distributed.worker.multiprocessing-method", "spawn") != "fork" \
+        else None
+    if script is not None:
+        raise MeshError(f"{script} starts a local Dask cluster from its top level: put that code under "
+                        "'if __name__ == \"__main__\":' (Dask's worker processes run the script again), or "
+                        "pass scheduler=\"sequential\"")
     plugins = ()
     cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
     if pin and n <= len(cpus):
@@ -87,6 +100,54 @@ def local_cluster(n_workers=None, pin=True):
     finally:
         if saved is not None:
             os.environ[_TRIM_ENV] = saved
+
+
+def unguarded_main():
+    """The main script's path when the code calling this runs at its top level, outside an
+    ``if __name__ == "__main__":`` block; else None (guarded, interactive, ``python -c``).
+
+    Worker processes started by "spawn" or "forkserver" (Dask's default) run the main script
+    again before they do anything: unguarded, the script's call that started them runs again in
+    each, which fails (a process that starts processes while it starts) and Dask reports it in
+    pages of tracebacks, then a timeout. Found from the main script's source (its ``ast``) and
+    the line of its top-level code being run.
+
+    Examples
+    --------
+    >>> from o3dheat.cluster import unguarded_main
+    >>> unguarded_main() is None          # a doctest runs from pytest's guarded main
+    True
+    """
+    import ast
+
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if path is None:
+        return None
+    frame = sys._getframe(1)
+    while frame is not None and not (frame.f_code.co_name == "<module>" and frame.f_globals is vars(main)):
+        frame = frame.f_back
+    if frame is None:  # not called from the main script's code
+        return None
+    line = frame.f_lineno
+    try:
+        with open(frame.f_code.co_filename, encoding="utf-8") as fh:
+            tree = ast.parse(fh.read())
+    except (OSError, SyntaxError, ValueError):  # cannot tell: no false alarm
+        return None
+
+    def is_main_test(test):
+        if not (isinstance(test, ast.Compare) and len(test.ops) == 1 and isinstance(test.ops[0], ast.Eq)):
+            return False
+        sides = [test.left, test.comparators[0]]
+        return any(isinstance(x, ast.Name) and x.id == "__name__" for x in sides) and \
+            any(isinstance(x, ast.Constant) and x.value == "__main__" for x in sides)
+
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and node.body and is_main_test(node.test) and \
+                node.body[0].lineno <= line <= node.body[-1].end_lineno:
+            return None
+    return path
 
 
 def connect(scheduler, warm_up=False):

@@ -60,3 +60,47 @@ def test_local_cluster_pins_each_worker_to_a_cpu_of_its_own():
         assert all(c == cpus for c in client.run(_affinity).values())
     with local_cluster(len(cpus) + 1) as cluster, Client(cluster) as client:  # more workers than CPUs
         assert all(c == cpus for c in client.run(_affinity).values())
+
+
+STUDY = ("import open3d as o3d, o3dheat\n"
+         "def study():\n"
+         "    t = o3dheat.robustness_study({'s': o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)}, ['jitter'],\n"
+         "                                 kernels=['weighted'], descriptors=['hks_density'], scales=2, k=8,\n"
+         "                                 progress=False)\n"
+         "    print('rows', len(t), t['error'].tolist())\n")
+
+
+def _script(tmp_path, name, text):
+    import subprocess
+    import sys
+
+    path = tmp_path / name
+    path.write_text(text)
+    return subprocess.run([sys.executable, str(path)], capture_output=True, text=True, timeout=180, cwd=tmp_path)
+
+
+def test_a_script_without_the_main_guard_is_told_in_one_line_before_any_worker_starts(tmp_path):
+    pytest.importorskip("distributed")
+    import time
+
+    t0 = time.perf_counter()
+    run = _script(tmp_path, "unguarded.py", STUDY + "study()\n")  # each worker would run it again
+    assert run.returncode == 1 and time.perf_counter() - t0 < 60
+    last = run.stderr.strip().splitlines()[-1]
+    assert "unguarded.py starts a local Dask cluster from its top level: put that code under " \
+           "'if __name__ == \"__main__\":'" in last and 'scheduler="sequential"' in last
+    assert run.stderr.count("Traceback") == 1 and "TimeoutError" not in run.stderr and "Nanny" not in run.stderr
+    assert "rows" not in run.stdout
+    run = _script(tmp_path, "guarded.py", STUDY + "if __name__ == '__main__':\n    study()\n")  # the same, guarded
+    assert run.returncode == 0 and "rows 2 ['', '']" in run.stdout, run.stderr
+
+
+def test_unguarded_main_reads_the_line_being_run(tmp_path):
+    run = _script(tmp_path, "where.py", "from o3dheat.cluster import unguarded_main\n"
+                                        "def f():\n    return unguarded_main()\n"
+                                        "print('top', f() is not None)\n"
+                                        "if __name__ == '__main__':\n"
+                                        "    print('guarded', f() is not None)\n"
+                                        "    if True:\n        print('nested', f() is not None)\n"
+                                        "else:\n    print('else', f() is not None)\n")
+    assert run.stdout.split() == ["top", "True", "guarded", "False", "nested", "False"], run.stderr
