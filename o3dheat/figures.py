@@ -108,8 +108,8 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
 
     S = Surface.from_faces(len(V), F, V)
 
-    def count(g):
-        return sum(critical_points(S, g).counts)
+    def count(g):  # as the panels draw them: none of rounding errors on a part where g is constant
+        return sum(plot.drawn_critical_points(S, g).counts)
 
     # Fig. 1: level sets and critical points across scales, and their variation; the same times
     # with the full kernel (the hierarchy the truncation hides); the log grid's whole range
@@ -141,7 +141,7 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     cols = [0, 4, 9]
     for h, scales_png, variation_png, label, suptitle, chart, about_scales, about_chart in panels:
         titles = [f"f ({count(f)} critical points)"] + [
-            f"{label(i)} ({h.critical_counts[i].sum()} c.p., ε∞ {h.errors[i]:.3f})" for i in cols]
+            f"{label(i)} ({count(h.fields[:, i])} c.p., ε∞ {h.errors[i]:.3f})" for i in cols]
         _save(_panels(up, (V, F), np.c_[f, h.fields[:, cols]], titles=titles, ncols=4, label="f, Φ_t f",
                      suptitle=suptitle), out / scales_png)
         _save(plot.scale_space(h, title=chart), out / variation_png)

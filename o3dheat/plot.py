@@ -31,16 +31,26 @@ import warnings
 import numpy as np
 
 from . import checks
-from .errors import MeshError
+from .errors import MeshError, SolverError
 from .fem import _vertex_normals
 from .mesh import as_arrays
 
-__all__ = ["field", "fields", "render", "renderer_available", "scale_space", "study", "CRITICAL_COLORS"]
+__all__ = ["field", "fields", "render", "renderer_available", "scale_space", "study", "drawn_critical_points",
+           "CRITICAL_COLORS"]
 
 #: Colours of the critical points (the paper's).
 CRITICAL_COLORS = {"maxima": "red", "minima": "blue", "saddles": "green"}
 #: Above this many critical points in a panel none are drawn (a noisy field has thousands).
 MAX_CRITICAL_POINTS = 400
+#: A part of the mesh on which a field varies by at most this much relative to the field's largest
+#: magnitude is drawn as constant there: its "critical points" and level sets would be those of
+#: rounding errors (``Φ_t(e_i)`` is exactly 0 on the parts without vertex i; a truncated kernel is a
+#: constant plus rounding on a part its few eigenpairs do not reach).
+FLAT_RTOL = 1e-9
+#: Markers of critical points cover at most about half this fraction of the pixels of each part:
+#: their radius is the smaller of 0.75% of the mesh's diagonal and what this share of the part's
+#: projected area allows; a part where that is under about a pixel gets none (and the panel says so).
+MARKER_COVER = 0.2
 RENDER_SIZE = 1200  # pixels of the (square) offscreen render; panels are crops of it
 _UP = {"z": [0, 1, 2], "y": [2, 0, 1], "x": [1, 2, 0]}  # cyclic: keeps the orientation
 _RENDERERS = ("auto", "open3d", "matplotlib")
@@ -284,15 +294,121 @@ def _tmesh(V, F, rgb):
     return m
 
 
+# ------------------------------------------------------------------ parts, and fields flat on a part
+def _parts(n, F):
+    """(n,) int64: the connected part of each vertex, numbered from 0 (-1: in no face)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    out = np.full(n, -1, dtype=np.int64)
+    if len(F) == 0:
+        return out
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]])
+    _, label = connected_components(coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n)), directed=False)
+    used = np.zeros(n, bool)
+    used[F.ravel()] = True
+    out[used] = np.unique(label[used], return_inverse=True)[1]
+    return out
+
+
+def _flat_parts(f, parts):
+    """(p,) bool: the parts on which ``f`` is constant up to ``FLAT_RTOL`` times its largest magnitude."""
+    k = int(parts.max()) + 1 if len(parts) else 0
+    used = parts >= 0
+    lo, hi = np.full(k, np.inf), np.full(k, -np.inf)
+    np.minimum.at(lo, parts[used], f[used])
+    np.maximum.at(hi, parts[used], f[used])
+    scale = float(np.abs(f[used]).max()) if used.any() else 0.0
+    return hi - lo <= FLAT_RTOL * scale
+
+
+def _flattened(f, parts, flat):
+    """``f`` with each flat part set to its mean (its rounding errors drawn as what they are: nothing)."""
+    if not flat.any():
+        return f
+    used = parts >= 0
+    mean = np.bincount(parts[used], weights=f[used], minlength=len(flat)) / np.maximum(
+        np.bincount(parts[used], minlength=len(flat)), 1)
+    on = used.copy()
+    on[used] = flat[parts[used]]
+    out = f.copy()
+    out[on] = mean[parts[on]]
+    return out
+
+
+def _without_flat(cp, parts, flat):
+    """``(cp, left_out)``: the critical points not on a flat part, and how many were left out."""
+    import dataclasses
+
+    def keep(idx):
+        idx = np.asarray(idx, dtype=np.int64)
+        p = parts[idx] if len(idx) else np.zeros(0, np.int64)
+        return (p < 0) | ~flat[np.maximum(p, 0)]
+
+    km, ks, kM = keep(cp.minima), keep(cp.saddles), keep(cp.maxima)
+    left_out = int((~km).sum() + np.asarray(cp.saddle_multiplicity)[~ks].sum() + (~kM).sum())
+    if not left_out:
+        return cp, 0
+    return dataclasses.replace(cp, minima=np.asarray(cp.minima)[km], saddles=np.asarray(cp.saddles)[ks],
+                               saddle_multiplicity=np.asarray(cp.saddle_multiplicity)[ks],
+                               maxima=np.asarray(cp.maxima)[kM]), left_out
+
+
+def drawn_critical_points(mesh, f):
+    """The critical points the drawings show: those of :func:`o3dheat.critical_points` less the
+    ones on a part of the mesh where ``f`` is constant up to rounding (it varies there by at most
+    ``FLAT_RTOL`` times the largest ``|f|``), whose critical points are those of rounding errors.
+
+    ``Φ_t(e_i)`` is exactly 0 on the parts of a multi-part mesh without vertex i, and a truncated
+    kernel is constant on a part its few eigenpairs do not reach; computed, both carry hundreds of
+    "critical points" of rounding errors, which would bury the part under markers.
+
+    Parameters
+    ----------
+    mesh : mesh, (V, F) or o3dheat.topology.Surface
+    f : (n,) array_like
+
+    Returns
+    -------
+    CriticalPoints
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat, o3dheat.plot as plot
+    >>> a = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)
+    >>> b = a.clone().translate([3.0, 0.0, 0.0])
+    >>> n = len(a.vertex.positions)
+    >>> V = np.r_[a.vertex.positions.numpy(), b.vertex.positions.numpy()]
+    >>> F = np.r_[a.triangle.indices.numpy(), b.triangle.indices.numpy() + n]
+    >>> f = np.r_[V[:n, 2], 1e-17 * np.random.default_rng(0).standard_normal(n)]  # rounding on b
+    >>> sum(o3dheat.critical_points((V, F), f).counts) > 2, plot.drawn_critical_points((V, F), f).counts
+    (True, (1, 0, 1))
+    """
+    from .topology import Surface, critical_points
+
+    S = Surface.of(mesh)
+    f = S.field(f)
+    parts = _parts(S.n, S.F)
+    flat = _flat_parts(f, parts)
+    return _without_flat(critical_points(S, _flattened(f, parts, flat)), parts, flat)[0]
+
+
 # ------------------------------------------------------------------ one panel
 class _Panel:
     """What one panel shows, computed once: colours, level sets, critical points."""
 
-    def __init__(self, V, F, f, lo, hi, cmap, level_sets, critical_points, S, span=None):
+    def __init__(self, V, F, f, lo, hi, cmap, level_sets, critical_points, S, span=None, parts=None):
         from .topology import critical_points as find_critical
         from .topology import level_sets as find_levels
 
+        self.parts = _parts(len(V), F) if parts is None else parts
+        flat = _flat_parts(f, self.parts)
+        self.flat_parts = int(flat.sum())
+        f = _flattened(f, self.parts, flat)  # rounding errors on a flat part: no level sets, no critical points
         self.V, self.F, self.f, self.lo, self.hi, self.cmap = V, F, f, lo, hi, cmap
+        self.left_out = 0  # critical points on flat parts, not drawn
+        self.too_dense = 0  # critical points on parts too small for their markers, not drawn (set by render)
         self.levels = np.zeros(0)
         self.segments = np.zeros((0, 2, 3))
         if level_sets is not None and level_sets is not False:
@@ -308,7 +424,10 @@ class _Panel:
                 self.segments = P[L] if len(L) else np.zeros((0, 2, 3))
         self.critical = {}
         if critical_points is not None and critical_points is not False:
-            cp = find_critical(S if S is not None else (V, F), f) if critical_points is True else critical_points
+            if critical_points is True:
+                cp, self.left_out = _without_flat(find_critical(S if S is not None else (V, F), f), self.parts, flat)
+            else:
+                cp = critical_points
             self.critical = {kind: np.asarray(getattr(cp, kind)) for kind in CRITICAL_COLORS}
             m, s, M = cp.counts  # a saddle of multiplicity k counts k times, as everywhere in o3dheat
             self.counts = {"minima": m, "saddles": s, "maxima": M}
@@ -321,9 +440,31 @@ class _Panel:
         s = np.clip((values - self.lo) / (self.hi - self.lo), 0, 1) if self.hi > self.lo else np.full(len(values), 0.5)
         return colormaps[self.cmap](s)[:, :3]
 
-    def render(self, renderer, view, normals, line_width=None, point_size=1.0):
+    def marker_radii(self, view, point_size=1.0, pixel=None):
+        """(p,) radius of the critical points' markers on each part (0: none drawn there).
+
+        At most 0.75% of the mesh's diagonal, and small enough that a part's markers, as discs,
+        cover at most ``MARKER_COVER`` of its projected area ``Σ |a_f · d| / 2`` (``a_f`` the
+        faces' area vectors, ``d`` toward the viewer: the silhouette of a closed part, whose hidden
+        half of the markers does not show; half that of a sheet): about half of that share of the
+        part's pixels. A radius under 1.2 ``pixel`` (world units; default: a pixel of the render)
+        is too small to see: that part gets no markers."""
+        k = int(self.parts.max()) + 1 if len(self.parts) else 0
+        V, F = self.V, self.F
+        a = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]) / 2
+        area = np.bincount(self.parts[F[:, 0]], weights=np.abs(a @ view.d) / 2, minlength=k)
+        idx = np.concatenate([self.critical[kind] for kind in CRITICAL_COLORS]).astype(np.int64)
+        count = np.bincount(self.parts[idx], minlength=k) if len(idx) else np.zeros(k)
+        r = np.minimum(0.0075 * view.diagonal * point_size,
+                       np.sqrt(MARKER_COVER * area / (np.pi * np.maximum(count, 1))))
+        pixel = 2 * view.half / RENDER_SIZE if pixel is None else pixel
+        return np.where(r >= 1.2 * pixel, r, 0.0)
+
+    def render(self, renderer, view, normals, line_width=None, point_size=1.0, pixel=None):
         """(h, w, 3) uint8 image of the surface, its level sets and critical points;
-        ``line_width`` in pixels of the render (default: a third of a percent of its size)."""
+        ``line_width`` in pixels of the render (default: a third of a percent of its size);
+        ``pixel``: the size of a pixel of the final picture in world units (markers smaller than
+        about one are not drawn, see :meth:`marker_radii`)."""
         import open3d as o3d
 
         V, F = self.V, self.F
@@ -345,27 +486,36 @@ class _Panel:
                 lines.point.positions = o3d.core.Tensor(P.astype(np.float32))
                 lines.line.indices = o3d.core.Tensor(np.arange(len(P), dtype=np.int32).reshape(-1, 2))
                 lines.line.colors = o3d.core.Tensor(np.zeros((len(P) // 2, 3), np.float32))
+        self.too_dense = 0
         if self.draw_critical:
             from matplotlib.colors import to_rgb
 
             Vs, Fs = _sphere()
-            r = 0.0075 * view.diagonal * point_size
+            radius = self.marker_radii(view, point_size, pixel)
             for kind, color in CRITICAL_COLORS.items():
                 idx = self.critical[kind]
+                r = radius[self.parts[idx]] if len(idx) else np.zeros(0)
+                self.too_dense += int((r == 0).sum())
+                idx, r = idx[r > 0], r[r > 0, None]
                 if not len(idx):
                     continue
                 centers = V[idx] + 0.5 * r * toward[idx]
-                P = (centers[:, None, :] + r * Vs[None]).reshape(-1, 3)
+                P = (centers[:, None, :] + r[:, :, None] * Vs[None]).reshape(-1, 3)
                 T = (Fs[None] + len(Vs) * np.arange(len(idx))[:, None, None]).reshape(-1, 3)
                 shade = _shade(np.tile(Vs, (len(idx), 1)), view)
                 meshes.append(_tmesh(P, T, np.asarray(to_rgb(color))[None] * shade[:, None]))
         eye = 4.0 * view.radius * view.d
         size = renderer.size
         width = max(2.5, size / 300 if line_width is None else line_width)  # thinner lines break up
-        img = renderer.image(meshes, lines, width, np.zeros(3), eye, view.up,
-                             view.half, 2.5 * view.radius, 5.5 * view.radius)
         rows, cols = view.crop(size)
-        return img[rows, cols]
+        for _ in range(2):  # the framed surface always shows: a blank frame is drawn again, then refused
+            img = renderer.image(meshes, lines, width, np.zeros(3), eye, view.up,
+                                 view.half, 2.5 * view.radius, 5.5 * view.radius)[rows, cols]
+            if (img < 250).any(axis=2).mean() > 1e-3:
+                return img
+        raise SolverError(f"Open3D's offscreen renderer drew nothing for a mesh of {len(F)} faces framed in "
+                          f"view: a blank picture is not written; try renderer='matplotlib' "
+                          f"(O3DHEAT_RENDERER=matplotlib)")
 
     def draw_matplotlib(self, ax, view_angles, view):
         """The fallback: matplotlib's 3D axes (painter's algorithm; lines and points are drawn
@@ -572,7 +722,9 @@ def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cma
     r = _renderer(renderer)
     ranges = [_range(values)] * T if shared_range else [_range(values[:, i]) for i in range(T)]
     span = (values.min(), values.max()) if shared_range else None
-    panels = [_Panel(V, F, values[:, i], *ranges[i], cmap, level_sets, critical_points, S, span) for i in range(T)]
+    parts = _parts(len(V), F)
+    panels = [_Panel(V, F, values[:, i], *ranges[i], cmap, level_sets, critical_points, S, span, parts)
+              for i in range(T)]
     aspect = float(np.clip(np.ptp(frame.u) / np.ptp(frame.v), 0.25, 4.0))  # width / height of a picture
     w = size * min(1.0, aspect) if aspect < 1 else size
     h = w / aspect
@@ -588,16 +740,30 @@ def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cma
             ax = fig.add_subplot(nrows, ncols, i + 1)
             # level sets 1.6 pixels wide in the saved figure (100 dpi), whatever the downsampling
             shrink = r.size * np.ptp(frame.u) / (2 * frame.half) / (w * 100)
-            ax.imshow(p.render(r, frame, normals, line_width=1.6 * shrink), interpolation="antialiased")
+            ax.imshow(p.render(r, frame, normals, line_width=1.6 * shrink, pixel=np.ptp(frame.u) / (w * 100)),
+                      interpolation="antialiased")
             ax.set_axis_off()
         else:
             ax = fig.add_subplot(nrows, ncols, i + 1, projection="3d")
             p.draw_matplotlib(ax, view, frame)
         if titles is not None:
             ax.set_title(titles[i], fontsize=9)
-        if p.critical and not p.draw_critical:
-            ax.text(0.5, 0.0, f"{p.n_critical:,} critical points: too many to draw", transform=ax.transAxes,
-                    ha="center", va="top", fontsize=7, color="0.35")
+        notes = []
+        if p.critical and not p.draw_critical and p.n_critical:
+            notes.append(f"{p.n_critical:,} critical points: too many to draw")
+        if p.too_dense:
+            notes.append(f"{p.too_dense:,} critical points too dense to draw at this size"
+                         + (" (small parts)" if p.parts.max() > 0 else ""))
+        if p.left_out:
+            notes.append(f"constant on {p.flat_parts} part{'s' if p.flat_parts > 1 else ''} (to rounding): "
+                         f"{p.left_out:,} critical points of rounding errors not drawn")
+        if notes:
+            text = getattr(ax, "text2D", ax.text)  # 3D axes' text takes (x, y, z, s)
+            import textwrap
+
+            width = max(20, int(w / 0.055))  # characters of 7 points across the panel
+            text(0.5, 0.0, "\n".join(line for n in notes for line in textwrap.wrap(n, width)), transform=ax.transAxes,
+                 ha="center", va="top", fontsize=7, color="0.35")
         axes.append(ax)
     if shared_range:
         _colorbar(fig, axes, panels[0], label, "right", values)

@@ -326,3 +326,58 @@ def test_vertices_in_no_face_are_left_out_and_said(caplog):
         fig = plot.field((V2, F), f, renderer="matplotlib")
     assert "1 vertices are in no face: not drawn" in caplog.text and "value 0" not in caplog.text
     assert fig.axes[1].get_ylim()[1] < 2  # the colour range is the drawn vertices'
+
+
+def two_spheres(tiny=1.0):
+    V, F = icosphere(3)
+    return np.r_[V, tiny * V + [3.0, 0.0, 0.0]], np.r_[F, F + len(V)], len(V)
+
+
+@needs_renderer
+def test_a_part_constant_to_rounding_gets_no_critical_points():
+    """Φ_t(e_i) is exactly 0 on a part without vertex i; computed, it is rounding errors there,
+    with hundreds of "critical points" that buried the part under markers. Such a part is drawn
+    constant: no markers on it, the legend does not count them, the panel says so."""
+    V, F, n = two_spheres()
+    f = np.r_[V[:n, 2], 1e-17 * np.random.default_rng(0).standard_normal(n)]
+    assert sum(o3dheat.critical_points((V, F), f).counts) > 100
+    assert plot.drawn_critical_points((V, F), f).counts == (1, 0, 1)
+    fig = plot.field((V, F), f, level_sets=None, view=(0, -90))
+    assert legend_texts(fig) == ["maxima (1)", "minima (1)", "saddles (0)"]
+    img = fig.axes[0].get_images()[0].get_array()
+    right = img[:, img.shape[1] // 2:]  # the flat sphere, at x = 3
+    assert sum(pixels(right, c) for c in ("red", "blue", "green")) == 0
+    assert any("constant on 1 part (to rounding)" in t.get_text() for t in fig.axes[0].texts)
+    g = np.r_[V[:n, 2], V[n:, 2]]  # a field that varies on both: nothing left out
+    assert plot.drawn_critical_points((V, F), g).counts == o3dheat.critical_points((V, F), g).counts
+
+
+@needs_renderer
+def test_markers_on_a_small_part_are_sized_for_it():
+    """A part a tenth the size of the other, with a noisy field: its markers cover a bounded
+    share of its pixels (they were sized for the whole mesh and hid it)."""
+    V, F, n = two_spheres(tiny=0.1)
+    f = V[:, 2] + np.r_[np.zeros(n), 0.01 * np.random.default_rng(1).standard_normal(n)]
+    cp = o3dheat.critical_points((V, F), f)
+    assert 20 < sum(cp.counts) <= plot.MAX_CRITICAL_POINTS
+    img = plot.render((V, F), f, level_sets=None, view=(0, -90))
+    small = img[:, int(img.shape[1] * 0.85):]
+    surface = ink(small).sum()
+    marked = sum(pixels(small, c) for c in ("red", "blue", "green"))
+    assert surface > 0 and marked < 0.15 * surface, (marked, surface)
+
+
+@needs_renderer
+def test_a_blank_render_is_refused(monkeypatch):
+    V, F = icosphere(2)
+    r = plot._renderer("open3d")
+    calls = []
+
+    def white(*args):
+        calls.append(1)
+        return np.full((r.size, r.size, 3), 255, np.uint8)
+
+    monkeypatch.setattr(r, "image", white)
+    with pytest.raises(o3dheat.SolverError, match="drew nothing"):
+        plot.field((V, F), V[:, 2])
+    assert len(calls) == 2  # drawn again once, then refused
