@@ -19,6 +19,7 @@ on (at most 8).
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -33,7 +34,8 @@ CHUNK = 1 << 14
 _MAX_THREADS = 8
 _LOCAL = threading.local()  # .threads: set by threads() for the calling thread
 _PREFIX = "o3dheat-pool"
-_POOL = None  # (pid, ThreadPoolExecutor): recreated in a forked child (threads do not survive a fork)
+_POOL = None  # (pid, ThreadPoolExecutor or None, its threads, capped): recreated in a forked child
+# (threads do not survive a fork)
 
 
 def get_threads():
@@ -114,11 +116,47 @@ def threads(n):
         _LOCAL.threads = old
 
 
-def _pool():
+def _pool(need=None):
+    """The process's worker threads, at least ``need`` of them (default ``get_threads() - 1``) if
+    they can be started, or None when none could be; recreated in a forked child and when more
+    are needed (each thread maps a stack and a malloc arena: only as many as used are started);
+    see :func:`_started_pool`."""
     global _POOL
-    if _POOL is None or _POOL[0] != os.getpid():
-        _POOL = (os.getpid(), ThreadPoolExecutor(max_workers=_MAX_THREADS - 1, thread_name_prefix=_PREFIX))
+    need = max(get_threads() - 1 if need is None else need, 1)
+    if _POOL is None or _POOL[0] != os.getpid() or (_POOL[1] is not None and _POOL[2] < need and not _POOL[3]):
+        # an older, smaller pool is dropped, not shut down: a caller may still be submitting to it
+        pool, m = _started_pool(need)
+        _POOL = (os.getpid(), pool, m, m < need)  # the last: fewer could start, do not try again
     return _POOL[1]
+
+
+def _started_pool(m):
+    """A thread pool with its ``m`` threads started now, so that a later ``submit`` never starts
+    one: under an address-space limit (``ulimit -v``: each thread reserves a stack and a malloc
+    arena) or a thread limit, starting a thread fails ("can't start new thread") and a work item
+    queued by that ``submit`` could then run twice. When fewer start, the pool has as many as did
+    (None: none, everything runs in the calling thread), with a warning once."""
+    while m > 0:
+        pool = ThreadPoolExecutor(max_workers=m, thread_name_prefix=_PREFIX)
+        go = threading.Event()
+        started = 0
+        try:
+            for _ in range(m):  # each blocks a thread until go: every submit starts a new one
+                pool.submit(go.wait)
+                started += 1
+        except RuntimeError as e:
+            if "can't start new thread" not in str(e):
+                raise
+            go.set()
+            pool.shutdown(wait=True)
+            logging.getLogger("o3dheat").warning(
+                "could start only %d of %d worker threads (%s: an address-space limit, ulimit -v, or a thread "
+                "limit): running on %d", started, m, e, started + 1)
+            m = started
+            continue
+        go.set()
+        return pool, m
+    return None, 0
 
 
 def row_parts(n, chunk=None):
@@ -179,12 +217,16 @@ def run(fn, items, threads=None):
     t = min(get_threads() if threads is None else threads, len(items))
     if t <= 1 or threading.current_thread().name.startswith(_PREFIX):  # never nested in the pool
         return [fn(*item) for item in items]
-    cuts = [round(i * len(items) / t) for i in range(t + 1)]
 
     def group(g):
         return [fn(*item) for item in items[cuts[g]:cuts[g + 1]]]
 
-    futures = [_pool().submit(group, g) for g in range(1, t)]
+    pool = _pool(t - 1)
+    if pool is None:
+        return [fn(*item) for item in items]
+    t = min(t, _POOL[2] + 1)
+    cuts = [round(i * len(items) / t) for i in range(t + 1)]
+    futures = [pool.submit(group, g) for g in range(1, t)]
     error, out = None, []
     try:
         out = group(0)
@@ -214,7 +256,7 @@ def background(fn, *args):
     """
     from concurrent.futures import Future
 
-    if get_threads() > 1 and not threading.current_thread().name.startswith(_PREFIX):
+    if get_threads() > 1 and not threading.current_thread().name.startswith(_PREFIX) and _pool() is not None:
         return _pool().submit(fn, *args)
     done = Future()
     try:

@@ -669,7 +669,11 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     # size (micrometres, georeferenced metres); ordinary meshes (extent 1e-6..1e6) have u = 1
     extent = float(np.max(np.ptp(V, axis=0)))
     u = 1.0 if mass == "identity" or 2.0**-20 <= extent <= 2.0**20 else float(2.0 ** np.round(np.log2(extent)))
-    L, B, areas = fem.operators(V / u if u != 1.0 else V, F, mass)
+    try:
+        L, B, areas = fem.operators(V / u if u != 1.0 else V, F, mass)
+    except MemoryError as e:
+        raise OutOfMemory(f"out of memory assembling the operators of {len(V)} vertices ({e}): decimate "
+                          "the mesh") from e
     if sigma is not None:
         sigma = sigma * u * u
     t_asm = time.perf_counter() - t0

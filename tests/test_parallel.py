@@ -160,3 +160,34 @@ def test_thread_setting_belongs_to_the_calling_thread():
     assert seen == {"a": 1, "b": 3}
     with parallel.threads(2):
         assert parallel.get_threads() == 2
+
+
+def test_threads_that_cannot_start_mean_fewer_threads_not_an_error(monkeypatch, caplog):
+    """Issue 22: under ulimit -v, starting a pool thread raised "can't start new thread" in the
+    middle of a computation. The pool's threads are started at once; if only some (or none)
+    start, the work runs on those, in the same order, with one warning."""
+    import logging
+    import threading
+
+    import o3dheat.parallel as par
+
+    real_start, started = threading.Thread.start, []
+
+    def start(self):
+        if self.name.startswith(par._PREFIX) and len(started) >= allowed:
+            raise RuntimeError("can't start new thread")
+        started.append(self.name)
+        real_start(self)
+
+    for allowed in (0, 1):
+        started.clear()
+        monkeypatch.setattr(threading.Thread, "start", start)
+        monkeypatch.setattr(par, "_POOL", None)
+        with par.threads(4), caplog.at_level(logging.WARNING, logger="o3dheat"):
+            caplog.clear()
+            out = par.run(lambda a, z: (a, z), par.row_parts(100, 10))
+            assert par.background(sum, [1, 2]).result() == 3
+        assert out == par.row_parts(100, 10)
+        assert f"could start only {allowed} of 3 worker threads" in caplog.text
+        monkeypatch.undo()
+    monkeypatch.setattr(par, "_POOL", None)
