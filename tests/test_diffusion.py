@@ -94,3 +94,38 @@ def test_extreme_scales_are_covariant(alpha, scheme):
         warnings.simplefilter("error")  # no overflow on the way
         g = o3dheat.diffuse((alpha * V, F), f, 1e-5 * alpha**2, 5, scheme=scheme)
     np.testing.assert_allclose(g, ref, atol=1e-12)
+
+
+def reference_limit(V, F, mass="consistent"):
+    """4 / λ_max from the complete dense spectrum of L x = λ B x (the paper's e^{-λt/2}: eq. (8)
+    multiplies a mode by 1 − λ dt/2, stable for dt <= 4/λ)."""
+    import scipy.linalg
+
+    L, B, _ = o3dheat.fem.operators(V, F, mass)
+    return 4.0 / scipy.linalg.eigh(L.toarray(), B.toarray(), eigvals_only=True)[-1], B
+
+
+@pytest.mark.parametrize("level, mass", [(2, "consistent"), (3, "consistent"), (3, "lumped")])
+def test_explicit_step_limit_is_the_one_checked_and_stated(level, mass):
+    """Just below 4/λ_max is accepted (and the B-norm never grows over many steps), just above is
+    refused, and the message's number is that limit (it said 0.00293 where 4/λ_max was 0.00307:
+    the check used a raised estimate of λ_max). Level 2 takes the dense path, level 3 Lanczos."""
+    import re
+
+    V, F = icosphere(level)
+    V = V * [1.2, 1.0, 0.8]
+    limit, B = reference_limit(V, F, mass)
+    f = np.random.default_rng(2).standard_normal(len(V))
+    h = o3dheat.diffuse((V, F), f, dt=limit * (1 - 1e-6), steps=200, mass=mass, return_history=True)
+    norms = np.sqrt(np.einsum("it,it->t", h, B @ h))
+    assert np.all(np.diff(norms) <= 1e-12 * norms[0])
+    with pytest.raises(o3dheat.MeshError, match="unstable") as e:
+        o3dheat.diffuse((V, F), f, dt=limit * (1 + 1e-6), steps=1, mass=mass)
+    stated = float(re.search(r"4/λ_max = ([0-9.e+-]+)", str(e.value)).group(1))
+    assert stated == pytest.approx(limit, rel=1e-5)
+
+
+def test_explicit_step_limit_formula():
+    from o3dheat.diffusion import explicit_step_limit
+
+    assert explicit_step_limit(2.0) == 2.0 and explicit_step_limit(0.0) == np.inf
