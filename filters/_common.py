@@ -17,6 +17,7 @@ import numpy as np
 
 from o3dheat import heatflow, kernel
 from o3dheat.errors import MeshError
+from o3dheat.mesh import as_arrays, mesh_of
 from o3dheat.filters import OneOf, check_parameters, param
 
 log = logging.getLogger("o3dheat")
@@ -134,7 +135,8 @@ class Site:
 
     Parameters
     ----------
-    geometry : Open3D TriangleMesh or PointCloud (legacy or tensor)
+    geometry : Open3D TriangleMesh or PointCloud (legacy or tensor), (V, F) pair or mesh-like
+        A mesh-like (:func:`o3dheat.mesh.mesh_of`: a Repaired, a Resampled) stands for its mesh.
     operators : str
         One of :data:`OPERATORS`: how a point cloud gets its operators.
     step : filter or None
@@ -159,6 +161,12 @@ class Site:
         if operators not in OPERATORS:
             raise MeshError(f"unknown operators {operators!r}: use one of {OPERATORS}")
         self.operators = operators
+        geometry = mesh_of(geometry)  # a Repaired, a Resampled, any mesh-like: the mesh it holds
+        if isinstance(geometry, (tuple, list)) and len(geometry) == 2:  # (V, F) arrays
+            V, F = as_arrays(geometry)
+            geometry = o3d.t.geometry.TriangleMesh()
+            geometry.vertex.positions = o3d.core.Tensor(V)
+            geometry.triangle.indices = o3d.core.Tensor(F)
         if isinstance(geometry, o3d.geometry.TriangleMesh):
             geometry = o3d.t.geometry.TriangleMesh.from_legacy(geometry)
         elif isinstance(geometry, o3d.geometry.PointCloud):
@@ -176,7 +184,8 @@ class Site:
             if "positions" not in self.attrs:
                 raise MeshError("the point cloud has no points")
         else:
-            raise MeshError(f"a filter takes an Open3D TriangleMesh or PointCloud, got {type(geometry).__name__}")
+            raise MeshError("a filter takes an Open3D TriangleMesh or PointCloud, a (V, F) pair or a mesh-like "
+                            f"(an object with a .mesh, e.g. a Repaired or a Resampled), got {type(geometry).__name__}")
         if step is not None:
             from o3dheat.filters import attribute_columns, check_step
 

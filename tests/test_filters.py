@@ -764,3 +764,23 @@ def test_outputs_whose_ply_properties_collide_are_refused(monkeypatch):
         flt.apply(flt.apply(mesh, "scalar", output="h_1"), "hks", k=8, scales=2, output="h")
     again = flt.apply(grown, "scalar", kind="height", output="p")  # the same name: replaced, not a collision
     assert again.vertex["p"].shape == (len(mesh.vertex.positions),)
+
+
+def test_filters_take_every_mesh_like():
+    """Issue 22: a resampling result (Resampled) and a repair result (Repaired) were refused by the
+    filters; they take any mesh-like, and (V, F) arrays, as the rest of o3dheat does."""
+    import o3dheat.sampling as sampling
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 12)
+    V, F = m.vertex.positions.numpy(), m.triangle.indices.numpy()
+    chain = flt.Chain([flt.get("scalar", kind="height"), flt.get("heat_smooth", attribute="height")])
+    direct = chain(m)
+    ref = direct.vertex["height_smooth"].numpy()
+    for like in (o3dheat.repair(m), (V, F)):
+        out = chain(like)
+        np.testing.assert_allclose(out.vertex["height_smooth"].numpy(), ref, atol=1e-8)
+    r = sampling.jitter(m, 0.1, seed=1)
+    out = chain(r)
+    assert out.vertex["height_smooth"].shape[0] == r.mesh.vertex.positions.shape[0]
+    with pytest.raises(o3dheat.MeshError, match="mesh-like"):
+        flt.apply(object(), "scalar", kind="height")
