@@ -17,7 +17,7 @@ import numpy as np
 
 from o3dheat import heatflow, kernel
 from o3dheat.errors import MeshError
-from o3dheat.mesh import as_arrays, mesh_of
+from o3dheat.mesh import as_arrays, check_points, mesh_of
 from o3dheat.filters import OneOf, check_parameters, param
 
 log = logging.getLogger("o3dheat")
@@ -320,9 +320,7 @@ class Site:
                 raise MeshError("this filter needs a surface (faces): use operators='reconstruct' for "
                                 "point clouds")
             else:
-                from o3dheat.sampling import reconstruct
-
-                self._surface = reconstruct(self.out)
+                self._surface = _reconstruction(self)
         return self._surface
 
     def to_surface(self, f):
@@ -392,7 +390,24 @@ class Site:
         return s
 
 
+def _reconstruction(site):
+    """The surface through a site's points, made once per point set and normals and shared by the
+    steps of a chain (each step reads its own copy of the cloud: reconstructing it again cost a
+    Poisson solve per step, and its repairs were reported at every step)."""
+    import hashlib
+
+    from o3dheat.sampling import reconstruct
+    from o3dheat.spectrum import memoized
+
+    check_points(site.P, planar=False)
+    h = hashlib.sha256(np.ascontiguousarray(site.P).tobytes())
+    if "normals" in site.attrs:
+        h.update(np.ascontiguousarray(site.attrs["normals"].numpy(), dtype=np.float64).tobytes())
+    return memoized(("reconstruct", h.hexdigest()), lambda: reconstruct(site.out))
+
+
 def _robust_operators(P):
+    check_points(P, planar=True, min_points=31, what="the point cloud (robust operators: 30 neighbours each)")
     try:
         import robust_laplacian
     except ImportError:

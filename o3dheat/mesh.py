@@ -47,7 +47,9 @@ an Open3D mesh or ``(V, F)`` (:func:`mesh_of`; :class:`Repaired`, ``sampling.Res
 
 from __future__ import annotations
 
+import hashlib
 import logging
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -123,6 +125,41 @@ def _pair(mesh):
                             f"got {type(mesh).__name__}")
         pair = (checks.values(mesh[0]), checks.values(mesh[1]))
     return pair
+
+
+_NOTED: OrderedDict = OrderedDict()  # (fingerprint of the arrays, topic) -> None, newest last
+
+
+def note_repair(arrays, topic, message, *args):
+    """Log a repair (a warning on the ``o3dheat`` logger: welded vertices, dropped faces...) once
+    per geometry and ``topic`` ("weld", "degenerate", "duplicate", "zero-area", "unreferenced"):
+    the same mesh goes through :func:`prepare` for its spectrum and through
+    :class:`o3dheat.topology.Surface` for its critical points, and a chain of filters reads it at
+    each step; the user hears of each repair once. ``arrays`` (the geometry the repair is about,
+    as the caller was given them: ``(V, F)`` or ``(F,)``) are fingerprinted with BLAKE2b (about
+    50 ms for a million vertices); the last 64 notes are remembered.
+
+    Examples
+    --------
+    >>> import numpy as np, o3dheat.mesh as m
+    >>> F = np.array([[0, 1, 2], [0, 1, 2]])
+    >>> m.note_repair((F,), "duplicate", "dropping %d duplicate faces", 1)    # logged
+    >>> m.note_repair((F,), "duplicate", "dropping %d duplicate faces", 1)    # the same: not again
+    """
+    h = hashlib.blake2b(digest_size=16)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        if a.size:
+            h.update(memoryview(a).cast("B"))
+    key = (h.hexdigest(), topic)
+    if key in _NOTED:
+        _NOTED.move_to_end(key)
+        return
+    _NOTED[key] = None
+    while len(_NOTED) > 64:
+        _NOTED.popitem(last=False)
+    log.warning(message, *args)
 
 
 def check_points(P, planar=True, min_points=4, what="the point cloud"):
@@ -871,15 +908,14 @@ def prepare(mesh, weld=True):
     if c.welded:
         apart = (f"; {c.split} vertices coincide with another but are kept apart (split: a vertex of "
                  "its own each, as they are in the input)" if c.split else "")
-        log.warning("welded %d duplicate vertices (exactly coincident coordinates) into %d%s: results "
-                    "are given per input vertex, each copy with the value of its welded vertex",
+        note_repair((V, F), "weld", "welded %d duplicate vertices (exactly coincident coordinates) into %d%s: "
+                    "results are given per input vertex, each copy with the value of its welded vertex",
                     c.welded, len(np.unique(c.rep[F.reshape(-1)])), apart)
-    if c.degenerate:
-        log.warning("dropping %d degenerate faces (a vertex index repeated)", c.degenerate)
-    if c.duplicate:
-        log.warning("dropping %d duplicate faces", c.duplicate)
-    if c.zero_area:
-        log.warning("dropping %d zero-area faces", c.zero_area)
+    for count, topic, what in ((c.degenerate, "degenerate", "degenerate faces (a vertex index repeated)"),
+                               (c.duplicate, "duplicate", "duplicate faces"),
+                               (c.zero_area, "zero-area", "zero-area faces")):
+        if count:
+            note_repair((V, F), topic, "dropping %d " + what, count)
     F = c.F
     if len(F) == 0:
         raise MeshError("no face with a positive area is left: the mesh is degenerate")
@@ -887,7 +923,8 @@ def prepare(mesh, weld=True):
         return Prepared(V, F, np.arange(n), n)
     keep = np.flatnonzero(c.used)
     if c.unreferenced:
-        log.warning("%d unreferenced vertices set aside; they get the value 0 in every result", c.unreferenced)
+        note_repair((V, F), "unreferenced", "%d unreferenced vertices set aside; they get the value 0 in every "
+                    "result", c.unreferenced)
     remap = np.full(n, -1, dtype=np.int64)
     remap[keep] = np.arange(len(keep))
     return Prepared(V[keep], remap[F], keep, n, remap[c.rep] if c.welded else None)

@@ -64,7 +64,7 @@ from scipy.sparse.csgraph import connected_components
 from . import checks
 from ._jit import any_compiled, compiled
 from .errors import MeshError
-from .mesh import _degenerate, _unique_rows, _weld_map, as_arrays
+from .mesh import _degenerate, _unique_rows, _weld_map, as_arrays, note_repair
 
 __all__ = ["CriticalPoints", "PersistenceDiagram", "critical_points", "persistence",
            "simplify_critical_points", "level_sets", "Surface", "warm_up", "compiled_in_this_process"]
@@ -135,14 +135,15 @@ class Surface:
         V, F = as_arrays(mesh)
         self.V = V
         self.representative = None
+        given = (V, F)  # what repairs are noted against (once per mesh, with prepare's: note_repair)
         if weld:
             rep = _weld_map(V, F)
             welded = int(np.sum(rep != np.arange(len(V))))
             if welded:
-                log.warning("welded %d duplicate vertices (exactly coincident coordinates): the faces "
-                            "use the first copy of each vertex", welded)
+                note_repair(given, "weld", "welded %d duplicate vertices (exactly coincident coordinates): the "
+                            "faces use the first copy of each vertex", welded)
                 self.representative, F = rep, rep[F]
-        self._build(len(V), F)
+        self._build(len(V), F, given)
 
     @classmethod
     def of(cls, mesh):
@@ -179,15 +180,15 @@ class Surface:
             raise MeshError("the mesh has no faces")
         if F.min() < 0 or F.max() >= n:
             raise MeshError(f"face indices out of range [0, {n - 1}]")
-        self._build(int(n), F)
+        self._build(int(n), F, (F,))
         return self
 
-    def _build(self, n, F):
+    def _build(self, n, F, given):
         if n >= 2**31 - 1:
             raise MeshError(f"{n} vertices: topology handles at most 2**31 - 2 vertices")
         bad = _degenerate(F)
         if bad.any():
-            log.warning("dropping %d degenerate faces (a vertex index repeated)", int(bad.sum()))
+            note_repair(given, "degenerate", "dropping %d degenerate faces (a vertex index repeated)", int(bad.sum()))
             F = F[~bad]
         if len(F) == 0:
             raise MeshError("no face is left once the degenerate ones are dropped")
@@ -198,7 +199,7 @@ class Surface:
         if np.any(edges[1] > 2):  # duplicate faces are one cause: drop them, then look again
             _, first = _unique_rows(np.sort(F, axis=1), return_index=True)
             if len(first) < len(F):
-                log.warning("dropping %d duplicate faces", len(F) - len(first))
+                note_repair(given, "duplicate", "dropping %d duplicate faces", len(F) - len(first))
                 F = np.ascontiguousarray(F[np.sort(first)])
                 edges = _kernel("_k_edges")(F, n)
         E, counts, face_edges, he, first, ptr, adj = edges

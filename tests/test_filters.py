@@ -784,3 +784,37 @@ def test_filters_take_every_mesh_like():
     assert out.vertex["height_smooth"].shape[0] == r.mesh.vertex.positions.shape[0]
     with pytest.raises(o3dheat.MeshError, match="mesh-like"):
         flt.apply(object(), "scalar", kind="height")
+
+
+def test_a_point_cloud_is_reconstructed_once_per_chain_and_degenerate_clouds_are_named(monkeypatch, caplog):
+    """Issue 22: each step of a chain reconstructed the cloud again (and its repairs were reported
+    at every step: "dropping 24 duplicate faces" twice); degenerate clouds (collinear, coincident,
+    three points, flat for a reconstruction) ended in raw Qhull or geometry-central errors."""
+    import logging
+
+    import o3dheat.sampling as sampling
+    import o3dheat.spectrum as S
+
+    S.clear_cache()
+    calls = []
+    real = sampling.reconstruct
+    monkeypatch.setattr(sampling, "reconstruct", lambda *a, **kw: calls.append(1) or real(*a, **kw))
+    pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(sphere_points()))
+    chain = flt.Chain([flt.get("scalar", kind="height"), flt.get("heat_smooth", attribute="height"),
+                       flt.get("hks", times=[0.1])])
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        chain(pc)
+    assert len(calls) == 1
+    messages = [r.getMessage() for r in caplog.records]
+    assert len(messages) == len(set(messages))  # no repair reported twice
+    rng = np.random.default_rng(0)
+    line = np.c_[np.linspace(0, 1, 50), np.zeros(50), np.zeros(50)]
+    flat = np.c_[rng.random((200, 2)), np.zeros(200)]
+    cases = {"all coincide": np.ones((50, 3)), "one line": line, "distinct points": rng.random((3, 3)),
+             "one plane": flat}
+    for operators in ("reconstruct", "robust"):
+        for msg, P in cases.items():
+            if operators == "robust" and msg == "one plane":
+                continue  # a flat patch is a surface for point-cloud operators
+            with pytest.raises(o3dheat.MeshError, match=msg):
+                flt.apply(o3d.t.geometry.PointCloud(o3d.core.Tensor(P)), "hks", times=[0.1], operators=operators)

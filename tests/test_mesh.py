@@ -561,3 +561,24 @@ def test_a_flat_patch_is_a_surface_for_point_operators_not_for_reconstruction():
         check_points(flat[:20], min_points=31)
     sphere = _RNG.standard_normal((100, 3))
     assert check_points(sphere, planar=False).shape == (100, 3)
+
+
+def test_a_repair_is_reported_once_per_mesh(caplog):
+    """Issue 22: the same repair was reported by prepare (the spectrum) and again by the topology
+    (the critical points) of the same mesh; now once per geometry, and again for another mesh."""
+    import logging
+
+    import open3d as o3d
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)
+    V, F = m.vertex.positions.numpy(), m.triangle.indices.numpy()
+    F2 = np.vstack([F, F[:3]])
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        s = o3dheat.eigensolve((V, F2), k=6, cache=False)
+        o3dheat.critical_points((V, F2), o3dheat.HeatKernel(s).smooth(V[:, 2], 0.01))
+        o3dheat.critical_points((V, F2), V[:, 0])
+    assert caplog.text.count("dropping 3 duplicate faces") == 1
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        o3dheat.critical_points((V * 2, F2), V[:, 0])  # another geometry: its own report
+    assert caplog.text.count("dropping 3 duplicate faces") == 1
