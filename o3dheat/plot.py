@@ -36,7 +36,7 @@ from .fem import _vertex_normals
 from .mesh import as_arrays
 
 __all__ = ["field", "fields", "render", "renderer_available", "scale_space", "study", "drawn_critical_points",
-           "CRITICAL_COLORS"]
+           "persistence_diagram", "CRITICAL_COLORS"]
 
 #: Colours of the critical points (the paper's).
 CRITICAL_COLORS = {"maxima": "red", "minima": "blue", "saddles": "green"}
@@ -1002,6 +1002,97 @@ def scale_space(ss, title=None):
         a.tick_params(axis="y", labelsize=8)
     if title:
         fig.suptitle(title, fontsize=11)
+    return fig
+
+
+def persistence_diagram(diagram, f=None, title=None):
+    """The persistence diagram of a field's sublevel sets, every point on or above the diagonal.
+
+    One filtration throughout, the sublevel sets ``{f <= c}`` as ``c`` grows, and each point is
+    ``(birth, death)`` of one homology class in it:
+
+    - dimension 0 (blue): a component born at a minimum, dying at the saddle where it merges
+      with an older one;
+    - dimension 1 (red): a loop born at a saddle, dying at the maximum that fills it in. The
+      diagram stores these pairs as ``(maximum, saddle)`` (:class:`o3dheat.topology.PersistenceDiagram`:
+      read on superlevel sets, a maximum's cap born at its value and merged at the saddle's,
+      birth above death); by the duality of a surface that is the same pair, and drawn here as
+      ``(saddle, maximum)``, birth and death exchanged back, it is the 1-dimensional sublevel
+      persistence (as gudhi gives it): above the diagonal, at the same distance from it.
+
+    Points near the diagonal are short-lived (noise); the features lie far from it. With ``f``
+    the classes that never die (the global minimum of each component, the saddles of its genus
+    and boundary, the maximum of a closed component: dimension 2, black) are drawn on a row "∞"
+    above the others.
+
+    Parameters
+    ----------
+    diagram : PersistenceDiagram
+        From :func:`o3dheat.persistence`.
+    f : (n,) array_like, optional
+        The field, to place the essential classes (their values are not in the diagram).
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One axes: birth horizontally, death vertically, the diagonal, a legend saying how each
+        dimension reads.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat, o3dheat.plot as plot
+    >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+    >>> V = m.vertex.positions.numpy().astype(float)
+    >>> f = V[:, 0] + 0.05 * np.random.default_rng(0).standard_normal(len(V))
+    >>> d = o3dheat.persistence(m, f)
+    >>> fig = plot.persistence_diagram(d, f)
+    >>> pts = fig.axes[0].collections[1].get_offsets()      # dimension 1, as drawn
+    >>> bool(np.all(pts[:, 1] >= pts[:, 0])), bool(np.all(d.intervals(1)[:, 1] <= d.intervals(1)[:, 0]))
+    (True, True)
+    """
+    from matplotlib.figure import Figure
+
+    from .topology import PersistenceDiagram
+
+    if not isinstance(diagram, PersistenceDiagram):
+        raise MeshError(f"expected a PersistenceDiagram (from o3dheat.persistence), got {type(diagram).__name__}")
+    d0 = diagram.intervals(0)
+    d1 = diagram.intervals(1)[:, ::-1]  # (maximum, saddle) -> (saddle, maximum): sublevel persistence
+    values = np.concatenate([d0.ravel(), d1.ravel()])
+    essential = np.zeros((0, 2))
+    if f is not None:
+        f = np.asarray(checks.values(f), dtype=np.float64).ravel()
+        idx = np.asarray(diagram.essential, dtype=np.int64)
+        if len(idx) and (idx.max() >= len(f) or not np.all(np.isfinite(f[idx]))):
+            raise MeshError("f must be the field of the diagram: one finite value per vertex")
+        essential = np.c_[f[idx], np.asarray(diagram.essential_dimension)] if len(idx) else essential
+        values = np.concatenate([values, essential[:, 0]])
+    lo, hi = (float(values.min()), float(values.max())) if len(values) else (0.0, 1.0)
+    pad = 0.04 * (hi - lo or 1.0)
+    top = hi + 3 * pad  # the row of the classes that never die
+    fig = Figure(figsize=(4.6, 4.6), dpi=100, layout="constrained")
+    ax = fig.subplots()
+    ax.scatter(d0[:, 0], d0[:, 1], s=10, c="tab:blue", label="dim 0: born at a minimum, dies at a saddle")
+    ax.scatter(d1[:, 0], d1[:, 1], s=10, c="tab:red",
+               label="dim 1: born at a saddle, dies at a maximum\n(stored as (maximum, saddle): exchanged)")
+    ax.plot([lo - pad, top], [lo - pad, top], "k-", lw=0.8)
+    ax.set_xlim(lo - pad, top + pad)
+    ax.set_ylim(lo - pad, top + pad)
+    if len(essential):
+        label = "never dies (row ∞; dim 2 black)"
+        for dim, color in ((0, "tab:blue"), (1, "tab:red"), (2, "black")):
+            e = essential[essential[:, 1] == dim]
+            if len(e):
+                ax.scatter(e[:, 0], np.full(len(e), top), s=24, c=color, marker="v", label=label)
+                label = None
+        ax.axhline(top, color="0.6", lw=0.6, ls="--")
+        ticks = [t for t in ax.get_yticks() if lo - pad <= t <= hi + pad]
+        ax.set_yticks(ticks + [top], [f"{t:.3g}" for t in ticks] + ["∞"])
+    ax.set_aspect("equal")
+    ax.set(xlabel="birth (f)", ylabel="death (f)")
+    ax.set_title(title or "persistence of the sublevel sets of f", fontsize=10)
+    ax.legend(fontsize=7, loc="lower right")
     return fig
 
 

@@ -381,3 +381,31 @@ def test_a_blank_render_is_refused(monkeypatch):
     with pytest.raises(o3dheat.SolverError, match="drew nothing"):
         plot.field((V, F), V[:, 2])
     assert len(calls) == 2  # drawn again once, then refused
+
+
+def test_persistence_diagram_draws_sublevel_persistence_above_the_diagonal():
+    """Dimension 1 is stored as (maximum, saddle) pairs of the superlevel sets, below the
+    diagonal; drawn as the sublevel sets' (saddle, maximum), on or above it like dimension 0,
+    with a legend that says how each reads; the classes that never die on the row ∞."""
+    V, F = torus(1.0, 0.4, 40, 20)
+    f = V[:, 0] + 0.1 * np.random.default_rng(0).standard_normal(len(V))
+    d = o3dheat.persistence((V, F), f)
+    stored = d.intervals(1)
+    assert len(stored) > 5 and np.all(stored[:, 1] <= stored[:, 0])  # as stored: below
+    fig = plot.persistence_diagram(d, f)
+    ax = fig.axes[0]
+    dim0, dim1 = (np.asarray(c.get_offsets()) for c in ax.collections[:2])
+    np.testing.assert_array_equal(dim0, d.intervals(0))
+    np.testing.assert_array_equal(dim1, stored[:, ::-1])  # (saddle, maximum)
+    for pts in (dim0, dim1):
+        assert np.all(pts[:, 1] >= pts[:, 0])
+    np.testing.assert_allclose(dim1[:, 1] - dim1[:, 0], d.persistence[d.dimension == 1])  # the same distance
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert texts[0].startswith("dim 0: born at a minimum, dies at a saddle")
+    assert texts[1].startswith("dim 1: born at a saddle, dies at a maximum")
+    essential = np.concatenate([np.asarray(c.get_offsets()) for c in ax.collections[2:]])
+    assert len(essential) == len(d.essential) == 4  # minimum, two saddles of the genus, maximum
+    assert np.all(essential[:, 1] > max(dim0.max(), dim1.max()))
+    assert ax.get_yticklabels()[-1].get_text() == "∞"
+    with pytest.raises(o3dheat.MeshError, match="PersistenceDiagram"):
+        plot.persistence_diagram(d.intervals(0))

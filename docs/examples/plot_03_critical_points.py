@@ -9,7 +9,6 @@ rest (§3.1, §3.3). The δ-simplified ones then drive an approximation: ``Φ_t`
 """
 
 # %%
-import matplotlib.figure
 import numpy as np
 
 import o3dheat
@@ -27,19 +26,17 @@ print(cp)                                  # M − s + m = χ = 2 for the (close
 # %%
 # The persistence diagram
 # -----------------------
-# Each pair is a critical point that is born and one that kills it; noise makes many short-lived
-# pairs near the diagonal, the shape's features lie far from it.
+# Each point is a homology class of the sublevel sets ``{f <= c}`` as ``c`` grows: a component
+# born at a minimum and merged at a saddle (dimension 0), or a loop born at a saddle and filled in
+# at a maximum (dimension 1). :func:`o3dheat.persistence` stores the latter as (maximum, saddle)
+# pairs of the superlevel sets, which would lie below the diagonal;
+# :func:`o3dheat.plot.persistence_diagram` draws them as the sublevel sets' (saddle, maximum),
+# above it like the others. Noise makes many short-lived pairs near the diagonal, the shape's
+# features lie far from it; the classes that never die (the global minimum and maximum of the
+# closed bunny) are on the row ∞.
 d = o3dheat.persistence(mesh, f)
 print(d)
-diagram = matplotlib.figure.Figure(figsize=(4.2, 4.2), layout="constrained")
-ax = diagram.subplots()
-for dim, colour in [(0, "tab:blue"), (1, "tab:red")]:
-    iv = d.intervals(dim)
-    ax.scatter(iv[:, 0], iv[:, 1], s=6, c=colour, label=f"dimension {dim}")
-lo, hi = f.min(), f.max()
-ax.plot([lo, hi], [lo, hi], "k-", lw=0.8)
-ax.set(xlabel="birth", ylabel="death", title="persistence pairs")
-ax.legend()
+diagram = o3dheat.plot.persistence_diagram(d, f, title="persistence pairs")
 
 # %%
 # δ-simplification and the feature-driven approximation
