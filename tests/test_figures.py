@@ -155,3 +155,52 @@ def test_titles_count_the_critical_points_drawn(tmp_path, monkeypatch):
     fig = dict(made)["fig2_eigenpairs.png"]
     counts = [int(ax.get_title().split(", ")[-1].split()[0]) for ax in fig.axes if ax.get_images()]
     assert len(counts) == 4 and max(counts) < 60, counts
+
+
+def gallery_cells(path):
+    """The code cells of a sphinx-gallery example (split at the ``# %%`` lines), parsed."""
+    import ast
+
+    text = path.read_text()
+    cells, current = [], []
+    for line in text.splitlines():
+        if line.startswith("# %%"):
+            cells.append("\n".join(current))
+            current = []
+        else:
+            current.append(line)
+    cells.append("\n".join(current))
+    return [ast.parse(c) for c in cells if c.strip()]
+
+
+EXAMPLES = sorted((__import__("pathlib").Path(__file__).parents[1] / "docs" / "examples").glob("plot_*.py"))
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
+def test_gallery_cells_print_no_stray_repr(path):
+    """sphinx-gallery prints the value of a cell's last expression: ``ax.legend()`` printed
+    ``<matplotlib.legend.Legend at 0x...>`` under examples 01 and 03. A cell may end with an
+    expression only if it is a print (or a docstring)."""
+    import ast
+
+    for tree in gallery_cells(path):
+        last = tree.body[-1] if tree.body else None
+        if isinstance(last, ast.Expr) and not isinstance(last.value, ast.Constant):
+            call = last.value
+            assert isinstance(call, ast.Call) and getattr(call.func, "id", None) == "print", \
+                f"{path.name} line {last.lineno}: {ast.unparse(last)} prints its value"
+
+
+def test_gallery_colorbars_name_the_field_drawn():
+    """Example 04 draws the smoothed mean curvature: its colorbar said "height, smoothed"."""
+    import ast
+
+    path = next(p for p in EXAMPLES if p.name.startswith("plot_04"))
+    calls = [n for t in gallery_cells(path) for n in ast.walk(t) if isinstance(n, ast.Call)
+             and getattr(n.func, "attr", None) in ("field", "fields")]
+    assert calls
+    for c in calls:
+        source = ast.unparse(c.args[1])
+        label = next(ast.literal_eval(k.value) for k in c.keywords if k.arg == "label")
+        assert source.startswith("F[") and "mean curvature" in label, (source, label)
+    assert 'F = out.vertex["mean_curvature_smooth"]' in path.read_text()

@@ -60,7 +60,7 @@ for ss, label in [(ss_paper, "paper grid"), (ss_log, "log grid")]:
     ax2.semilogx(ss.scales, ss.critical_counts.sum(axis=1), "o-", ms=3, label=label)
 ax1.set(xlabel="t", ylabel="ε∞", title="approximation error")
 ax2.set(xlabel="t", ylabel="critical points", title="minima + saddles + maxima")
-ax1.legend()
+_ = ax1.legend()  # assigned: the last expression of a cell would print its repr
 
 # %%
 # The paper's ten scales sit at the left end: between them Φ_t f hardly changes; the log grid

@@ -47,7 +47,7 @@ for label, i in picks.items():
 area = o3dheat.check_mesh(mesh).area
 ax.axhline(1 / area, color="gray", ls="--", lw=1, label="1 / area")
 ax.set(xlabel="t (paper convention)", ylabel="HKS (density form)")
-ax.legend()
+_ = ax.legend()  # assigned: the last expression of a cell would print its repr
 
 # %%
 # The two forms

@@ -36,7 +36,7 @@ print("smoothed curvature:", tuple(out.vertex["mean_curvature_smooth"].shape))
 # curvature at three of the six scales:
 F = out.vertex["mean_curvature_smooth"].numpy()
 fig = o3dheat.plot.fields(out, F[:, [0, 2, 4]], titles=["scale 0", "scale 2", "scale 4"],
-                          shared_range=False, critical_points=False, up="y", label="height, smoothed")
+                          shared_range=False, critical_points=False, up="y", label="mean curvature, smoothed")
 
 # %%
 # Saved, a chain is a small TOML file that the command replays on other meshes:

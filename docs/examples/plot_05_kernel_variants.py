@@ -61,4 +61,4 @@ for v, K in kernels.items():
     print(f"{v:9s} λ_2 = {lam[0]:.4g}  median change of λ_2..λ_80: {np.median(np.abs(lam / lam_regular - 1)):.1%}")
 ax1.set(xlabel="index i", ylabel="λ_i", title="irregular sampling")
 ax2.set(xlabel="index i", ylabel="relative change", title="irregular vs regular sampling")
-ax2.legend()
+_ = ax2.legend()  # assigned: the last expression of a cell would print its repr

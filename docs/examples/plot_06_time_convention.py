@@ -39,4 +39,4 @@ ax.loglog(t_paper, h[i], "o-", label="o3dheat hks(t)")
 ax.loglog(t_paper, h_lapy[i], "x--", label="LaPy diagonal(t / 2)")
 ax.loglog(t_paper, h_same[i], "s:", label="LaPy diagonal(t)")
 ax.set(xlabel="t (paper convention)", ylabel=f"HKS at vertex {i}")
-ax.legend()
+_ = ax.legend()  # assigned: the last expression of a cell would print its repr
