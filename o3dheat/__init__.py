@@ -18,7 +18,12 @@ from .topology import (CriticalPoints, PersistenceDiagram, critical_points, leve
 
 from . import approximation, batch, cluster, fem, figures, filters, heatflow, io, krylov, plot, sampling, study, topology  # noqa: E402, F401  (o3dheat.filters.apply, o3dheat.batch.run, ...)
 
-__version__ = "0.1.0"
+try:  # one place for the version: pyproject.toml, through the installed package's metadata
+    from importlib.metadata import PackageNotFoundError, version as _version
+
+    __version__ = _version("o3dheat")
+except PackageNotFoundError:  # a source tree that was never installed
+    __version__ = "0+unknown"
 
 __all__ = [
     "as_arrays", "check_mesh", "MeshReport", "repair", "Repaired",

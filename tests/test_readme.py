@@ -14,3 +14,18 @@ def test_readme_python_blocks_run(tmp_path, monkeypatch):
     for block in blocks:
         exec(compile(block, str(README), "exec"), namespace)
     assert (tmp_path / "out.ply").exists() and (tmp_path / "chain.toml").exists()
+
+
+def test_version_and_licence_have_one_source():
+    """Issue 23: __version__ comes from the package metadata (pyproject.toml), and the LICENSE file
+    is the licence pyproject names."""
+    import tomllib
+    from pathlib import Path
+
+    import o3dheat
+
+    root = Path(__file__).resolve().parent.parent
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    assert o3dheat.__version__ == project["version"]
+    assert project["license"] == "MIT" and (root / "LICENSE").read_text().startswith("MIT License")
+    assert f"\"{project['version']}\"" not in (root / "o3dheat" / "__init__.py").read_text()
