@@ -416,7 +416,8 @@ def shared_eigensolve(V, F, k=100, mass="consistent", cache=None):
     V : (n, 3) float64 ndarray
     F : (m, 3) int ndarray
     k : int
-        Eigenpairs (capped at the number of vertices).
+        Eigenpairs, capped at the number of vertices :func:`eigensolve` solves on (referenced,
+        duplicates welded: an STL's triangle soup has three copies of each corner).
     mass : str
         A key of :data:`o3dheat.fem.MASS_KINDS`.
     cache : None, bool, str or Path
@@ -435,9 +436,14 @@ def shared_eigensolve(V, F, k=100, mass="consistent", cache=None):
     >>> s.shared_eigensolve(V, F, k=4) is s.shared_eigensolve(V, F, k=4)
     True
     """
-    k = min(int(k), len(V))
-    key = _cache_key(np.asarray(V), np.asarray(F), k, mass, "auto")
-    return memoized(key, lambda: eigensolve((V, F), k=k, mass=mass, cache=_DISK if cache is None else cache))
+    k = _check_k(k)
+    key = _cache_key(np.asarray(V), np.asarray(F), k, mass, "auto")  # the k asked for: a repeat is a hit
+
+    def compute():  # capped at the vertices eigensolve solves on (prepare again there: O(n), once)
+        r = len(prepare((V, F)).V)
+        return eigensolve((V, F), k=min(k, r), mass=mass, cache=_DISK if cache is None else cache)
+
+    return memoized(key, compute)
 
 
 def _fix_signs(X, chunk=16):

@@ -818,3 +818,18 @@ def test_a_point_cloud_is_reconstructed_once_per_chain_and_degenerate_clouds_are
                 continue  # a flat patch is a surface for point-cloud operators
             with pytest.raises(o3dheat.MeshError, match=msg):
                 flt.apply(o3d.t.geometry.PointCloud(o3d.core.Tensor(P)), "hks", times=[0.1], operators=operators)
+
+
+def test_k_is_capped_at_the_welded_vertices_of_a_triangle_soup(caplog):
+    """Issue 22 (found in review): a filter capped k at the soup's vertex count before welding,
+    then eigensolve refused k > the welded count; the cap is now the vertices it solves on."""
+    import logging
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 4)
+    V, F = m.vertex.positions.numpy(), m.triangle.indices.numpy()
+    soup = o3d.t.geometry.TriangleMesh()
+    soup.vertex.positions = o3d.core.Tensor(V[F.reshape(-1)])
+    soup.triangle.indices = o3d.core.Tensor(np.arange(3 * len(F)).reshape(-1, 3))
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        out = flt.apply(soup, "hks", times=[0.1], k=100)
+    assert out.vertex["hks"].shape[0] == 3 * len(F) and f"this surface allows {len(V)}" in caplog.text
