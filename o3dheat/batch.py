@@ -456,6 +456,10 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
 
     from .cluster import progress_bar, session
 
+    for value, name in ((overwrite, "overwrite"), (binary, "binary"), (progress, "progress")):
+        if not isinstance(value, bool) and not (value is None and name == "progress"):
+            raise MeshError(f"{name} must be True or False{' (or None)' if name == 'progress' else ''}, "
+                            f"got {value!r}")
     chain, inputs, dsts, record = _preflight(chain, paths, out_dir, overwrite, suffix)
     rows = [[str(s), str(d), "skipped", 0.0, ""] for s, d in zip(inputs, dsts)]
     todo = [i for i, d in enumerate(dsts) if overwrite or not d.exists()]

@@ -361,3 +361,11 @@ def test_an_output_folder_inside_the_inputs_tree_resumes(scans):
     assert [p.name for p in expand(pattern, exclude=out)] == ["m0.ply", "m1.ply", "m2.ply"]
     with pytest.raises(o3dheat.MeshError, match="output folder .* is not searched"):
         expand(str(scans / "*" / "*.ply"), exclude=out)
+
+
+def test_flags_that_are_not_bools_are_refused(scans, tmp_path):
+    out = tmp_path / "out"
+    for kw in (dict(overwrite="no"), dict(binary=0), dict(progress="yes")):
+        with pytest.raises(o3dheat.MeshError, match=f"{next(iter(kw))} must be True or False"):
+            run(STEPS, scans / "*.ply", out, scheduler="sequential", **kw)
+    assert not out.exists()
