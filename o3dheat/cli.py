@@ -446,8 +446,7 @@ def _study(args):
     out = Path(args.out)
     _check_folder(out, "--out")  # before the config's meshes are read
     kw = load_config(args.config)
-    _output_folder(out, "--out")
-    table = robustness_study(out=out, scheduler=args.scheduler, **kw)
+    table = robustness_study(out=out, scheduler=args.scheduler, **kw)  # creates out once connected
     ok = table[table["error"].fillna("") == ""]
     failed = table[table["error"].fillna("") != ""]
     written = study_figures(table, out)
@@ -458,8 +457,10 @@ def _study(args):
     print(f"wrote {out / 'study.csv'}" + (f" and {len(written)} plots ({out}/study_*.png)" if written else
                                           " (no plot: no task succeeded)"))
     if len(failed):
-        print(f"{len(failed)} of {len(failed) + ok.groupby(['mesh', 'resampling']).ngroups} task(s) failed "
-              "(they are retried when the same command runs again):", file=sys.stderr)
+        tasks = len(failed) + ok.groupby(['mesh', 'resampling']).ngroups
+        head = (f"all {tasks} task(s) failed; first error: {failed['error'].iloc[0]}" if not len(ok) else
+                f"{len(failed)} of {tasks} task(s) failed")
+        print(f"{head} (they are retried when the same command runs again):", file=sys.stderr)
         for _, r in failed.iterrows():
             print(f"  {r['mesh']} / {r['resampling']}: {r['error']}", file=sys.stderr)
         return 1

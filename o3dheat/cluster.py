@@ -25,10 +25,11 @@ environment has it (a nanny started here before puts it there). For a cluster of
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import sys
 
-from .errors import MeshError
+from .errors import MeshError, SolverError
 
 __all__ = ["local_cluster", "connect", "session", "register_warm_up", "progress_bar", "task_error", "unguarded_main"]
 
@@ -84,12 +85,12 @@ def local_cluster(n_workers=None, pin=True):
         raise MeshError(f"{script} starts a local Dask cluster from its top level: put that code under "
                         "'if __name__ == \"__main__\":' (Dask's worker processes run the script again), or "
                         "pass scheduler=\"sequential\"")
-    plugins = ()
+    from .workers import OneLineLogs, PinToCore
+
+    plugins = (OneLineLogs(),)
     cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
     if pin and n <= len(cpus):
-        from .workers import PinToCore
-
-        plugins = (PinToCore(cpus[:n]),)
+        plugins += (PinToCore(cpus[:n]),)
     # the nannies read the setting when they are made, and the workers inherit this process's
     # environment when they are spawned: both happen here
     saved = os.environ.pop(_TRIM_ENV, None)
@@ -218,18 +219,63 @@ def connect(scheduler, warm_up=False):
 
 
 def close(client, owned):
-    """Close a client from :func:`connect` and, when it started one, its local cluster."""
+    """Close a client from :func:`connect` and, when it started one, its local cluster.
+
+    The shutdown of a cluster started here is silent: what Dask logs then (comms closed under
+    it, a busy or restarting worker process killed: "Worker process still alive ... killing")
+    says nothing the caller can act on; the tasks' results already say what failed."""
     if client is None or not owned:
         return
     cluster = getattr(client, "cluster", None)
-    client.close()
-    if cluster is not None:
-        cluster.close()
+    with _dask_logs(logging.CRITICAL):
+        try:
+            client.close()
+        finally:
+            if cluster is not None:
+                cluster.close()
+
+
+class _DaskLogs(logging.Filter):
+    """Records of Dask and its web stack below ``level`` dropped, the others on one line (no
+    traceback): a worker's death is a task's result (:func:`task_error`), not pages of stack."""
+
+    def __init__(self, level):
+        super().__init__()
+        self.level = level
+
+    def filter(self, record):
+        if not record.name.startswith(("distributed", "dask", "tornado", "asyncio")):
+            return True
+        if record.levelno < self.level:
+            return False
+        text = record.getMessage().strip().splitlines()
+        record.msg, record.args = (text[0] if text else ""), None
+        record.exc_info = record.exc_text = record.stack_info = None
+        return True
+
+
+@contextlib.contextmanager
+def _dask_logs(level):
+    """The handlers that Dask's records reach (the root's and Dask's own) filtered by
+    :class:`_DaskLogs` for the duration."""
+    handlers = {h for name in ("", "distributed", "tornado", "asyncio") for h in logging.getLogger(name).handlers}
+    flt = _DaskLogs(level)
+    for h in handlers:
+        h.addFilter(flt)
+    try:
+        yield
+    finally:
+        for h in handlers:
+            h.removeFilter(flt)
 
 
 @contextlib.contextmanager
 def session(scheduler, warm_up=False):
     """``with session(scheduler) as client:`` :func:`connect`, then :func:`close` on the way out.
+
+    With a local cluster started here (``scheduler=None``), Dask's log records are one line each
+    while it runs (a worker that dies is reported by its task, :func:`task_error`), and its
+    shutdown is silent.
 
     Examples
     --------
@@ -238,11 +284,24 @@ def session(scheduler, warm_up=False):
     ...     client is None
     True
     """
-    client, owned = connect(scheduler, warm_up=warm_up)
-    try:
-        yield client
-    finally:
-        close(client, owned)
+    if scheduler is not None:
+        client, owned = connect(scheduler, warm_up=warm_up)
+        try:
+            yield client
+        finally:
+            close(client, owned)
+        return
+    with _dask_logs(logging.WARNING):
+        try:
+            client, owned = connect(scheduler, warm_up=warm_up)
+        except MeshError:
+            raise
+        except Exception as e:  # e.g. its workers died while starting (out of memory)
+            raise SolverError(f"the local Dask cluster failed to start: {task_error(e)}") from None
+        try:
+            yield client
+        finally:
+            close(client, owned)
 
 
 def _warm_up():

@@ -465,8 +465,10 @@ def jitter(mesh, amount=0.3, seed=0):
     ['amount', 'degenerate', 'frozen', 'limited', 'moved_max', 'moved_mean', 'seed']
     """
     V, F = as_arrays(mesh)
-    if not (np.isfinite(amount) and amount >= 0):
-        raise MeshError(f"amount must be >= 0, got {amount}")
+    if isinstance(amount, bool) or not isinstance(amount, (int, float, np.integer, np.floating)) \
+            or not (np.isfinite(amount) and amount >= 0):
+        raise MeshError(f"amount must be a number >= 0, got {amount!r}")
+    seed = checks.count(seed, "seed", minimum=0, maximum=2**63 - 1)
     N = _vertex_normals(V, F)
     h = float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
     with np.errstate(over="ignore", invalid="ignore"):  # overflow: reported below

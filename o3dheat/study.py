@@ -113,18 +113,33 @@ def _aligned(a):
 
 
 def _reference(V, F, cfg):
-    """Reference descriptors, the times, the longest axis and the vertex areas of one mesh."""
+    """Reference descriptors, the times, the longest axis and the vertex areas of one mesh; or
+    ``{"error": message}``: a failure is a result (each task of the mesh reports it as its row),
+    not an exception that Dask would log with its traceback in every worker."""
     from threadpoolctl import threadpool_limits
 
     from .fem import mass_matrix
     from .parallel import threads
 
-    with threadpool_limits(1), threads(1):
-        axis = int(np.argmax(np.ptp(V, axis=0)))
-        desc, times = _descriptors(V, F, cfg["kernels"], cfg["descriptors"], cfg["k"], None, axis,
-                                   cfg["grid"], cfg["scales"], cfg.get("method", "spectral"))
-        areas = np.asarray(mass_matrix(V, F, "lumped").diagonal())
+    try:
+        with threadpool_limits(1), threads(1):
+            axis = int(np.argmax(np.ptp(V, axis=0)))
+            desc, times = _descriptors(V, F, cfg["kernels"], cfg["descriptors"], cfg["k"], None, axis,
+                                       cfg["grid"], cfg["scales"], cfg.get("method", "spectral"))
+            areas = np.asarray(mass_matrix(V, F, "lumped").diagonal())
+    except Exception as e:
+        log.debug("the reference failed: %s", traceback.format_exc())
+        return {"error": f"the reference sampling failed: {_one_line(e)}"}
     return {"times": times, "axis": axis, "areas": areas, "descriptors": desc, "V": V, "F": F}
+
+
+def _one_line(e):
+    return f"{type(e).__name__}: {' '.join(str(e).split()) or repr(e)}"
+
+
+def _failed(mesh_name, res_name, kind, error):
+    """The one row of a failed task."""
+    return [[mesh_name, res_name, kind, "", "", 0, float("nan"), float("nan"), float("nan"), 0, error]]
 
 
 def _rel(d, r, a):
@@ -147,6 +162,8 @@ def _task(mesh_name, res_name, spec, ref, cfg):
     from .sampling import resample, transfer
 
     kind = spec["kind"]
+    if "error" in ref:  # the reference failed: so does every task of its mesh
+        return _failed(mesh_name, res_name, kind, ref["error"])
     try:
         with threadpool_limits(1), threads(1):
             params = {key: v for key, v in spec.items() if key not in ("kind", "name")}
@@ -175,8 +192,7 @@ def _task(mesh_name, res_name, spec, ref, cfg):
             return rows
     except Exception as e:  # a failing task is a result, not the end of the study
         log.debug("task %s/%s failed: %s", mesh_name, res_name, traceback.format_exc())
-        return [[mesh_name, res_name, kind, "", "", 0, float("nan"), float("nan"), float("nan"), 0,
-                 f"{type(e).__name__}: {e}"]]
+        return _failed(mesh_name, res_name, kind, _one_line(e))
 
 
 # ------------------------------------------------------------------------------- bookkeeping
@@ -353,8 +369,11 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
         raise MeshError("meshes must be a non-empty dict name -> mesh")
     _unique_slugs([str(m) for m in meshes], "mesh")
     items = _normalise_resamplings(resamplings)
-    if not (isinstance(scales, (int, np.integer)) and scales >= 1 and isinstance(k, (int, np.integer)) and k >= 2):
-        raise MeshError("scales must be >= 1 and k >= 2 (integers)")
+    for value, name, least in ((scales, "scales", 1), (k, "k", 2)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+            raise MeshError(f"{name} must be an integer >= {least}, got {value!r} (scales must be >= 1 and k >= 2)")
+    if progress is not None and not isinstance(progress, (bool, np.bool_)):
+        raise MeshError(f"progress must be True, False or None, got {progress!r}")
     if not isinstance(grid, str) or grid not in kernel.GRIDS:
         raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(kernel.GRIDS)}")
     if not isinstance(method, str) or method not in heatflow.METHODS:
@@ -367,9 +386,11 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
         p = prepare(mesh)
         arrays[name] = (p.V, p.F)
     out = Path(out) if out is not None else None
+    state = None
     if out is not None:
-        (out / "tasks").mkdir(parents=True, exist_ok=True)
-        _check_config(out, cfg, items, arrays)
+        if out.exists() and not out.is_dir():
+            raise MeshError(f"{out} is a file: the study's output is a folder")
+        state = _check_config(out, cfg, items, arrays)  # written once the scheduler is reached
     rows, todo = [], []
     for mname in arrays:
         for rname, spec in items:
@@ -392,6 +413,8 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
     needed = sorted({m for m, _, _ in todo})
     try:
         with session(scheduler if todo else "sequential", warm_up=bool(todo)) as client:
+            if out is not None:  # the scheduler is reached: now the folder (none is left by a bad address)
+                _record(out, state)
             if client is None:
                 refs = {}
                 for mname, rname, spec in todo:
@@ -412,9 +435,8 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
                     m, r, s = futures[fut]
                     try:
                         result = fut.result()
-                    except Exception as e:  # e.g. the reference of this mesh failed
-                        result = [[m, r, s["kind"], "", "", 0, float("nan"), float("nan"), float("nan"), 0,
-                                   task_error(e)]]
+                    except Exception as e:  # the worker died (KilledWorker), was cancelled...
+                        result = _failed(m, r, s["kind"], task_error(e))
                     done(m, r, result)
     finally:
         if bar is not None:
@@ -436,10 +458,9 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
 
 
 def _check_config(out, cfg, items, arrays):
-    """Refuse to resume a study folder made with other settings (its task files would not fit)."""
+    """Refuse to resume a study folder made with other settings (its task files would not fit);
+    returns the folder's record (``study.json``) to write (:func:`_record`). Writes nothing."""
     import hashlib
-
-    from .io import atomic_write_text
 
     h = hashlib.sha256()
     for name in sorted(arrays):
@@ -458,7 +479,18 @@ def _check_config(out, cfg, items, arrays):
             raise MeshError(f"{out} holds a study with other settings or meshes; use another folder "
                             "or delete it")
         state["resamplings"] = {**old.get("resamplings", {}), **state["resamplings"]}
-    atomic_write_text(path, json.dumps(state, indent=1, sort_keys=True))
+    return state
+
+
+def _record(out, state):
+    """The study folder, its ``tasks/`` and its record ``study.json``."""
+    from .io import atomic_write_text
+
+    try:
+        (out / "tasks").mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise MeshError(f"cannot create the study folder {out / 'tasks'}: {e.strerror}") from None
+    atomic_write_text(out / "study.json", json.dumps(state, indent=1, sort_keys=True))
 
 
 def load_config(path):

@@ -7,11 +7,12 @@ import this module to unpickle the plugins.
 
 from __future__ import annotations
 
+import logging
 import os
 
 from distributed.diagnostics.plugin import WorkerPlugin
 
-__all__ = ["PinToCore"]
+__all__ = ["PinToCore", "OneLineLogs"]
 
 
 class PinToCore(WorkerPlugin):
@@ -62,3 +63,45 @@ class PinToCore(WorkerPlugin):
                 os.sched_setaffinity(int(tid), {cpu})
             except OSError:  # a thread that ended meanwhile
                 pass
+
+
+class OneLineLogs(WorkerPlugin):
+    """In a worker process of a local cluster, Dask's log records on one line each (no
+    traceback) while it runs, and none below CRITICAL once it closes (:func:`o3dheat.cluster.session`
+    does the same in this process): a task's failure is its result, a worker's shutdown is
+    nothing the user can act on.
+
+    Examples
+    --------
+    >>> import logging
+    >>> from o3dheat.workers import OneLineLogs
+    >>> plugin = OneLineLogs()
+    >>> plugin.setup(None); plugin.teardown(None)
+    >>> [f for h in logging.getLogger().handlers for f in h.filters if type(f).__name__ == "_DaskLogs"]
+    []
+    """
+
+    name = "o3dheat-one-line-logs"
+
+    def setup(self, worker):
+        from o3dheat.cluster import _dask_logs
+
+        self._running = _dask_logs(logging.WARNING)
+        self._running.__enter__()
+
+    def teardown(self, worker):
+        from o3dheat.cluster import _DaskLogs
+
+        running = getattr(self, "_running", None)
+        if running is not None:
+            running.__exit__(None, None, None)
+            self._running = None
+        closing = _DaskLogs(logging.CRITICAL)  # to the end of the process
+        for name in ("", "distributed", "tornado", "asyncio"):
+            for h in logging.getLogger(name).handlers:
+                h.addFilter(closing)
+        self._closing = closing
+        if worker is None:  # (the example's own process: put back)
+            for name in ("", "distributed", "tornado", "asyncio"):
+                for h in logging.getLogger(name).handlers:
+                    h.removeFilter(closing)

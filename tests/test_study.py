@@ -171,7 +171,8 @@ def test_cli_study_every_task_failed_exits_1_without_plots(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["study", str(cfg), "--out", str(out), "--scheduler", "sequential"]) == 1
     captured = capsys.readouterr()
-    assert "no plot" in captured.out and "1 of 1 task(s) failed" in captured.err
+    assert "no plot" in captured.out
+    assert "all 1 task(s) failed; first error: MeshError: target_edge_length" in captured.err
     assert "target_edge_length" in captured.err and not list(out.glob("*.png"))
 
 
@@ -234,3 +235,79 @@ def test_exact_method_smooths_with_the_full_kernel(monkeypatch):
                  method="exact")
     with pytest.raises(o3dheat.MeshError, match="unknown method 'fast'"):
         robustness_study({"s": (V, F)}, ["jitter"], method="fast", scheduler="sequential")
+
+
+FAILING = '''import sys
+import o3dheat.study
+
+
+def failing(*args, **kwargs):
+    raise o3dheat.SolverError("no spectrum here")
+
+
+o3dheat.study._descriptors = failing  # at the top level: in the workers too (they run this script again)
+
+if __name__ == "__main__":
+    from o3dheat.cli import main
+    sys.exit(main(["study", "study.toml", "--out", "out"]))
+'''
+
+
+def test_a_study_whose_every_task_fails_on_a_local_cluster_is_a_clean_summary(tmp_path):
+    pytest.importorskip("distributed")
+    import subprocess
+    import sys
+
+    import open3d as o3d
+
+    for name, r in (("s", 1.0), ("t", 2.0)):
+        o3dheat.io.write_mesh(tmp_path / f"{name}.ply", o3d.t.geometry.TriangleMesh.create_sphere(r, 8))
+    (tmp_path / "study.toml").write_text(
+        'k = 10\nscales = 2\nkernels = ["weighted"]\ndescriptors = ["hks_density"]\n[meshes]\ns = "s.ply"\n'
+        't = "t.ply"\n[[resampling]]\nkind = "jitter"\n[[resampling]]\nkind = "subdivide"\n'
+        '[[resampling]]\nkind = "decimate"\n')
+    (tmp_path / "run.py").write_text(FAILING)
+    run = subprocess.run([sys.executable, "run.py"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 1, run.stderr
+    assert "all 6 task(s) failed; first error: the reference sampling failed: SolverError: no spectrum here" \
+        in run.stderr
+    for noise in ("Traceback", "Compute Failed", "Stream is closed", "still alive", "CommClosedError"):
+        assert noise not in run.stderr, run.stderr
+    assert len(run.stderr.strip().splitlines()) == 6 + 1 + 6  # a warning per task, the summary, the list
+
+
+def test_an_unreachable_scheduler_leaves_no_study_folder(tmp_path, capsys):
+    import dask
+    import distributed  # noqa: F401  (its config defaults first)
+
+    from o3dheat.cli import main
+
+    out = tmp_path / "out"
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        with pytest.raises(o3dheat.MeshError, match="cannot connect to the Dask scheduler"):
+            robustness_study(MESHES, RES, out=out, scheduler="tcp://127.0.0.1:9", progress=False, **SMALL)
+        assert not out.exists()
+        cfg = tmp_path / "study.toml"
+        cfg.write_text('k = 10\nscales = 2\nkernels = ["weighted"]\n[meshes]\nb = "builtin:torus"\n'
+                       '[[resampling]]\nkind = "jitter"\n')
+        assert main(["study", str(cfg), "--out", str(out), "--scheduler", "tcp://127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot connect to the Dask scheduler" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_bools_strings_and_negatives_are_refused_before_any_work():
+    for kw, message in ((dict(scales=True), "scales must be an integer >= 1, got True"),
+                        (dict(scales=-3), "scales must be an integer >= 1, got -3"),
+                        (dict(k="20"), "k must be an integer >= 2, got '20'"),
+                        (dict(progress="no"), "progress must be True, False or None")):
+        with pytest.raises(o3dheat.MeshError, match=message):
+            robustness_study(MESHES, RES, scheduler="sequential", **{**SMALL, **kw})
+    # a resampling's own parameters: refused by its function, a row that names them
+    t = robustness_study({"s": icosphere(1)}, {"neg": {"kind": "jitter", "amount": -1}, "seed": {"kind": "jitter",
+                         "seed": -1}, "text": {"kind": "decimate", "reduction": "half"}}, kernels=["weighted"],
+                         descriptors=["hks_density"], scheduler="sequential", progress=False, k=8, scales=2)
+    errors = dict(zip(t["resampling"], t["error"]))
+    assert "amount must be a number >= 0, got -1" in errors["neg"]
+    assert "seed must be an integer from 0" in errors["seed"]
+    assert "reduction must be a number in [0, 1), got 'half'" in errors["text"]
