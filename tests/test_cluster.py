@@ -104,3 +104,19 @@ def test_unguarded_main_reads_the_line_being_run(tmp_path):
                                         "    if True:\n        print('nested', f() is not None)\n"
                                         "else:\n    print('else', f() is not None)\n")
     assert run.stdout.split() == ["top", "True", "guarded", "False", "nested", "False"], run.stderr
+
+
+def test_closing_a_local_cluster_with_a_busy_worker_is_silent(tmp_path):
+    pytest.importorskip("distributed")
+    run = _script(tmp_path, "busy.py", "import logging, time\n"
+                                       "from o3dheat.cluster import session\n"
+                                       "def slow(x):\n    import time\n    time.sleep(60)\n"
+                                       "if __name__ == '__main__':\n"
+                                       "    logging.basicConfig(level=logging.WARNING)\n"
+                                       "    with session(None) as client:\n"
+                                       "        fut = client.submit(slow, 1)\n"
+                                       "        time.sleep(3)   # running when the session closes\n"
+                                       "    print('closed')\n")
+    assert run.returncode == 0 and run.stdout.split() == ["closed"], run.stderr
+    for noise in ("still alive", "Traceback", "Stream is closed"):
+        assert noise not in run.stderr, run.stderr
