@@ -490,50 +490,46 @@ def main(argv=None):
             logging.getLogger(name).setLevel(logging.WARNING)
         for handler in logging.getLogger().handlers:
             handler.addFilter(_quiet_dask)
+    command = COMMANDS.get(args.command)
+    if command is None:
+        p.print_help()
+        return 1
     try:
-        if args.command == "demo":
-            from .demo import run
-
-            out = args.out
-            if out is None:  # the default name, or the next free one: a rerun keeps earlier results
-                out, i = Path("o3dheat-demo") / "bunny_heat.ply", 1
-                while out.exists():
-                    out, i = Path("o3dheat-demo") / f"bunny_heat-{i}.ply", i + 1
-            else:
-                _check_output(Path(out), args.overwrite)
-            if not Path(out).parent.is_dir():  # the default folder, created before the work
-                _output_folder(Path(out).parent, "--out")
-            run(out=out, k=args.k, reduction=args.reduction, seed=args.seed)
-        elif args.command == "info":
-            from .io import read_geometry
-            from .mesh import check_mesh
-
-            g = read_geometry(args.mesh)
-            if not hasattr(g, "triangle"):
-                raise MeshError(f"{args.mesh} is a point cloud ({len(g.point.positions)} points): "
-                                "info checks meshes")
-            print(check_mesh(g))
-        elif args.command == "repair":
-            _repair(args)
-        elif args.command == "filters":
-            _filters(args)
-        elif args.command == "apply":
-            _apply(args)
-        elif args.command == "batch":
-            return _batch(args)
-        elif args.command == "spectrum":
-            _spectrum(args)
-        elif args.command == "figure":
-            _figure(args)
-        elif args.command == "study":
-            return _study(args)
-        else:
-            p.print_help()
-            return 1
+        code = command(args)
     except (MeshError, SolverError, OSError) as e:
         print(f"o3dheat: error: {e}", file=sys.stderr)
         return 2
-    return 0
+    return 0 if code is None else code
+
+
+def _demo(args):
+    from .demo import run
+
+    out = args.out
+    if out is None:  # the default name, or the next free one: a rerun keeps earlier results
+        out, i = Path("o3dheat-demo") / "bunny_heat.ply", 1
+        while out.exists():
+            out, i = Path("o3dheat-demo") / f"bunny_heat-{i}.ply", i + 1
+    else:
+        _check_output(Path(out), args.overwrite)
+    if not Path(out).parent.is_dir():  # the default folder, created before the work
+        _output_folder(Path(out).parent, "--out")
+    run(out=out, k=args.k, reduction=args.reduction, seed=args.seed)
+
+
+def _info(args):
+    from .io import read_geometry
+    from .mesh import check_mesh
+
+    g = read_geometry(args.mesh)
+    if not hasattr(g, "triangle"):
+        raise MeshError(f"{args.mesh} is a point cloud ({len(g.point.positions)} points): info checks meshes")
+    print(check_mesh(g))
+
+
+#: subcommand -> its function (args -> exit code, None for 0): the one dispatch of :func:`main`
+COMMANDS = {"demo": _demo, "info": _info, "repair": _repair, "filters": _filters, "apply": _apply,
+            "batch": _batch, "spectrum": _spectrum, "figure": _figure, "study": _study}
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -285,3 +285,14 @@ def test_cli_demo_never_replaces_an_earlier_result(tmp_path, monkeypatch, capsys
     assert main(["demo", "--out", "o3dheat-demo/bunny_heat.ply"]) == 2
     assert "exists" in capsys.readouterr().err
     assert main(["demo", "--out", "o3dheat-demo/bunny_heat.ply", "--overwrite"]) == 0
+
+
+def test_every_subcommand_is_dispatched_through_one_table():
+    """Issue 23: the command dispatches through a table (COMMANDS), one entry per subcommand."""
+    import argparse
+
+    from o3dheat.cli import COMMANDS, _parser
+
+    subs = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
+    assert sorted(subs.choices) == sorted(COMMANDS)
+    assert main([]) == 1  # no subcommand: the help, exit status 1
