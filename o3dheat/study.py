@@ -319,7 +319,8 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
         Eigenpairs per sampling and kernel (capped at n − 2).
     out : str or Path, optional
         Folder for ``tasks/*.csv`` (one file per finished task: resumable), ``study.csv`` and, when
-        pyarrow is installed, ``study.parquet``. None keeps everything in memory (no resume).
+        pyarrow is installed, ``study.parquet``; created once the scheduler is reached (a bad
+        address leaves no folder). None keeps everything in memory (no resume).
     scheduler : None, "sequential", str or distributed.Client
         None: a local Dask cluster with one single-threaded worker process per core;
         "sequential": in this process; "tcp://host:port": an existing cluster; a Client: used
