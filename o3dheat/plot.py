@@ -44,9 +44,11 @@ CRITICAL_COLORS = {"maxima": "red", "minima": "blue", "saddles": "green"}
 MAX_CRITICAL_POINTS = 400
 #: A part of the mesh on which a field varies by at most this much relative to the field's largest
 #: magnitude is drawn as constant there: its "critical points" and level sets would be those of
-#: rounding errors (``Φ_t(e_i)`` is exactly 0 on the parts without vertex i; a truncated kernel is a
-#: constant plus rounding on a part its few eigenpairs do not reach).
-FLAT_RTOL = 1e-9
+#: numerical errors (``Φ_t(e_i)`` is exactly 0 on the parts without vertex i, but an eigensolver
+#: mixes equal eigenvalues of different parts to about its tolerance: 1e-9 of the field was measured
+#: there; a truncated kernel is a constant plus such errors on a part its few eigenpairs do not
+#: reach). A millionth is far below what a colour shows (1/256 of the range).
+FLAT_RTOL = 1e-6
 #: Markers of critical points cover at most about half this fraction of the pixels of each part:
 #: their radius is the smaller of 0.75% of the mesh's diagonal and what this share of the part's
 #: projected area allows; a part where that is under about a pixel gets none (and the panel says so).
@@ -324,7 +326,7 @@ def _flat_parts(f, parts):
 
 
 def _flattened(f, parts, flat):
-    """``f`` with each flat part set to its mean (its rounding errors drawn as what they are: nothing)."""
+    """``f`` with each flat part set to its mean (its numerical errors drawn as what they are: nothing)."""
     if not flat.any():
         return f
     used = parts >= 0
@@ -357,12 +359,12 @@ def _without_flat(cp, parts, flat):
 
 def drawn_critical_points(mesh, f):
     """The critical points the drawings show: those of :func:`o3dheat.critical_points` less the
-    ones on a part of the mesh where ``f`` is constant up to rounding (it varies there by at most
-    ``FLAT_RTOL`` times the largest ``|f|``), whose critical points are those of rounding errors.
+    ones on a part of the mesh where ``f`` is constant up to numerical error (it varies there by at
+    most ``FLAT_RTOL`` times the largest ``|f|``), whose critical points are those of the errors.
 
     ``Φ_t(e_i)`` is exactly 0 on the parts of a multi-part mesh without vertex i, and a truncated
     kernel is constant on a part its few eigenpairs do not reach; computed, both carry hundreds of
-    "critical points" of rounding errors, which would bury the part under markers.
+    "critical points" of numerical errors, which would bury the part under markers.
 
     Parameters
     ----------
@@ -405,7 +407,7 @@ class _Panel:
         self.parts = _parts(len(V), F) if parts is None else parts
         flat = _flat_parts(f, self.parts)
         self.flat_parts = int(flat.sum())
-        f = _flattened(f, self.parts, flat)  # rounding errors on a flat part: no level sets, no critical points
+        f = _flattened(f, self.parts, flat)  # errors on a flat part: no level sets, no critical points
         self.V, self.F, self.f, self.lo, self.hi, self.cmap = V, F, f, lo, hi, cmap
         self.left_out = 0  # critical points on flat parts, not drawn
         self.too_dense = 0  # critical points on parts too small for their markers, not drawn (set by render)
@@ -639,7 +641,14 @@ def _oriented(V, F):
     return F
 
 
-def _range(values):
+def _range(values, flat=None):
+    """The colour range: the 2nd–98th percentile of the values; with ``flat`` (a mask of the same
+    shape: the vertices of parts where the field is constant) of the others only, widened to the
+    flat parts' values (a small part holding all the variation is not clipped away by the
+    constant ones)."""
+    if flat is not None and flat.any() and not flat.all():
+        lo, hi = _range(values[~flat])
+        return min(lo, float(values[flat].min())), max(hi, float(values[flat].max()))
     lo, hi = np.percentile(values, [2, 98])
     if not hi > lo:
         lo, hi = float(np.min(values)), float(np.max(values))
@@ -720,9 +729,11 @@ def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cma
     F = _oriented(V, F)
     frame = _View(V, view)
     r = _renderer(renderer)
-    ranges = [_range(values)] * T if shared_range else [_range(values[:, i]) for i in range(T)]
-    span = (values.min(), values.max()) if shared_range else None
     parts = _parts(len(V), F)
+    flat = np.stack([_flat_parts(values[:, i], parts)[np.maximum(parts, 0)] & (parts >= 0) for i in range(T)], 1)
+    ranges = ([_range(values, flat)] * T if shared_range
+              else [_range(values[:, i], flat[:, i]) for i in range(T)])
+    span = (values.min(), values.max()) if shared_range else None
     panels = [_Panel(V, F, values[:, i], *ranges[i], cmap, level_sets, critical_points, S, span, parts)
               for i in range(T)]
     aspect = float(np.clip(np.ptp(frame.u) / np.ptp(frame.v), 0.25, 4.0))  # width / height of a picture
@@ -755,8 +766,8 @@ def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cma
             notes.append(f"{p.too_dense:,} critical points too dense to draw at this size"
                          + (" (small parts)" if p.parts.max() > 0 else ""))
         if p.left_out:
-            notes.append(f"constant on {p.flat_parts} part{'s' if p.flat_parts > 1 else ''} (to rounding): "
-                         f"{p.left_out:,} critical points of rounding errors not drawn")
+            notes.append(f"constant on {p.flat_parts} part{'s' if p.flat_parts > 1 else ''} (to numerical "
+                         f"error): {p.left_out:,} critical points of the errors not drawn")
         if notes:
             text = getattr(ax, "text2D", ax.text)  # 3D axes' text takes (x, y, z, s)
             import textwrap
@@ -919,11 +930,13 @@ def render(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cma
     _check_style(cmap)
     V, F, f = _welded(V, F, f)
     S, V, F, f = _surface(V, F, f, level_sets, critical_points)
-    lo, hi = _range(f) if vrange is None else (float(vr[0]), float(vr[1]))  # of what is drawn, as field's
+    parts = _parts(len(V), F)
+    flat = _flat_parts(f, parts)[np.maximum(parts, 0)] & (parts >= 0)
+    lo, hi = _range(f, flat) if vrange is None else (float(vr[0]), float(vr[1]))  # of what is drawn, as field's
     F = _oriented(V, F)
     frame = _View(V, view)
     r = _renderer("open3d")
-    panel = _Panel(V, F, f, lo, hi, cmap, level_sets, critical_points, S)
+    panel = _Panel(V, F, f, lo, hi, cmap, level_sets, critical_points, S, None, parts)
     return panel.render(r, frame, _vertex_normals(V, F))
 
 

@@ -347,7 +347,7 @@ def test_a_part_constant_to_rounding_gets_no_critical_points():
     img = fig.axes[0].get_images()[0].get_array()
     right = img[:, img.shape[1] // 2:]  # the flat sphere, at x = 3
     assert sum(pixels(right, c) for c in ("red", "blue", "green")) == 0
-    assert any("constant on 1 part (to rounding)" in t.get_text() for t in fig.axes[0].texts)
+    assert any("constant on 1 part (to numerical error)" in t.get_text() for t in fig.axes[0].texts)
     g = np.r_[V[:n, 2], V[n:, 2]]  # a field that varies on both: nothing left out
     assert plot.drawn_critical_points((V, F), g).counts == o3dheat.critical_points((V, F), g).counts
 
@@ -409,3 +409,18 @@ def test_persistence_diagram_draws_sublevel_persistence_above_the_diagonal():
     assert ax.get_yticklabels()[-1].get_text() == "∞"
     with pytest.raises(o3dheat.MeshError, match="PersistenceDiagram"):
         plot.persistence_diagram(d.intervals(0))
+
+
+@needs_renderer
+def test_a_small_part_holding_the_variation_gets_the_colours():
+    """Φ_t(e_i) of a vertex of a part with 3% of the vertices: the others are constant (0, to the
+    eigensolver's mixing of equal eigenvalues, 1e-9 of the field), and the colour range is the
+    small part's, not the 2-98th percentile of the zeros (all one colour)."""
+    V, F, n = two_spheres(tiny=0.5)
+    V1, F1 = icosphere(1, 0.3)
+    V = np.r_[V, V1 + [0.0, 0.0, 2.5]]
+    F = np.r_[F, F1 + 2 * n]
+    f = np.r_[1e-12 * np.random.default_rng(0).standard_normal(2 * n), V1[:, 2] + 1.0]
+    fig = plot.field((V, F), f, level_sets=None, critical_points=False)
+    lo, hi = fig.axes[1].get_ylim()
+    assert lo < 0.75 and hi > 1.25  # the small part's values 0.7 .. 1.3 are in the range
