@@ -27,7 +27,7 @@ from . import checks
 from .errors import MeshError
 from .fem import _vertex_normals
 from .mesh import (_degenerate, _non_manifold_edge_faces, _non_manifold_vertex_mask, _unique_rows, as_arrays,
-                   repair)
+                   check_points, repair)
 
 __all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
            "reconstruct", "transfer", "nearest", "point_arrays", "MIN_FACES", "REMESH_MAX_FACES"]
@@ -620,8 +620,7 @@ def reconstruct(cloud, method="poisson", depth=8, neighbours=30, trim=0.0):
     if method not in ("poisson", "ball_pivoting"):
         raise MeshError(f"unknown reconstruction {method!r}: use 'poisson' or 'ball_pivoting'")
     P, N = point_arrays(cloud)
-    if len(P) < 10:
-        raise MeshError(f"{len(P)} points are too few to reconstruct a surface")
+    check_points(P, planar=False, min_points=10, what="the point cloud to reconstruct")
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(P))
     if N is None or not np.all(np.isfinite(N)):
         pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(neighbours))

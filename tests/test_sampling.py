@@ -300,3 +300,18 @@ def test_decimating_to_fewer_than_4_faces_is_a_clear_error():
                 {"reduction": True}, {"reduction": -0.1}):
         with pytest.raises(o3dheat.MeshError, match="target_faces must be|reduction must be"):
             decimate(sphere, **bad)
+
+
+def test_reconstructing_a_degenerate_cloud_is_a_named_error():
+    """Issue 22: collinear, coincident, too few or flat points ended in raw Qhull/Open3D errors."""
+    import open3d as o3d
+
+    from o3dheat.sampling import reconstruct
+
+    rng = np.random.default_rng(0)
+    for msg, P in {"all coincide": np.ones((50, 3)),
+                   "one line": np.c_[np.linspace(0, 1, 50), np.zeros(50), np.zeros(50)],
+                   "distinct points": rng.random((3, 3)),
+                   "one plane": np.c_[rng.random((200, 2)), np.zeros(200)]}.items():
+        with pytest.raises(o3dheat.MeshError, match=msg):
+            reconstruct(o3d.t.geometry.PointCloud(o3d.core.Tensor(P)))
