@@ -84,12 +84,25 @@ class OneLineLogs(WorkerPlugin):
     name = "o3dheat-one-line-logs"
 
     def setup(self, worker):
+        """Dask's records on one line each while the worker runs (Dask calls it at the start).
+
+        Examples
+        --------
+        See the class.
+        """
         from o3dheat.cluster import _dask_logs
 
         self._running = _dask_logs(logging.WARNING)
         self._running.__enter__()
 
     def teardown(self, worker):
+        """No Dask record below CRITICAL from now to the end of the worker's process (Dask calls
+        it when the worker closes; ``worker=None``: undone at once, for the class's example).
+
+        Examples
+        --------
+        See the class.
+        """
         from o3dheat.cluster import _DaskLogs
 
         running = getattr(self, "_running", None)
