@@ -17,8 +17,8 @@ import numpy as np
 
 from o3dheat import heatflow, kernel
 from o3dheat.errors import MeshError
-from o3dheat.mesh import as_arrays, check_points, mesh_of
 from o3dheat.filters import OneOf, check_parameters, param
+from o3dheat.mesh import as_arrays, check_points, mesh_of
 
 log = logging.getLogger("o3dheat")
 

@@ -7,7 +7,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from o3dheat.errors import MeshError
-
 from o3dheat.filters import check_column, need_attribute, param
 
 from ._common import Site, checked

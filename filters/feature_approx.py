@@ -8,8 +8,19 @@ from o3dheat.errors import MeshError
 from o3dheat.filters import check_column, need_attribute, param
 from o3dheat.kernel import mass_of
 
-from ._common import (Method, Operators, Site, Variant, checked, eigenpairs, fraction, kernel_of, persistence,
-                      smoother, tolerance)
+from ._common import (
+    Method,
+    Operators,
+    Site,
+    Variant,
+    checked,
+    eigenpairs,
+    fraction,
+    kernel_of,
+    persistence,
+    smoother,
+    tolerance,
+)
 
 
 @dataclass(frozen=True)

@@ -8,8 +8,23 @@ from o3dheat.errors import MeshError
 from o3dheat.filters import check_column, need_attribute
 from o3dheat.kernel import mass_of
 
-from ._common import (Grid, Method, Normalization, Operators, Site, Variant, checked, eigenpairs, kernel_of,
-                      scale_count, smoother, time_count, time_list, times_of, tolerance)
+from ._common import (
+    Grid,
+    Method,
+    Normalization,
+    Operators,
+    Site,
+    Variant,
+    checked,
+    eigenpairs,
+    kernel_of,
+    scale_count,
+    smoother,
+    time_count,
+    time_list,
+    times_of,
+    tolerance,
+)
 
 
 @dataclass(frozen=True)

@@ -6,8 +6,21 @@ from dataclasses import dataclass
 
 from o3dheat.kernel import HKS_DEFAULT, mass_of
 
-from ._common import (Grid, HksForm, Normalization, Operators, Site, Variant, checked, eigenpairs, kernel_of,
-                      scale_count, time_count, time_list, times_of)
+from ._common import (
+    Grid,
+    HksForm,
+    Normalization,
+    Operators,
+    Site,
+    Variant,
+    checked,
+    eigenpairs,
+    kernel_of,
+    scale_count,
+    time_count,
+    time_list,
+    times_of,
+)
 
 
 @dataclass(frozen=True)

@@ -13,13 +13,36 @@ from .kernel import VARIANTS, HeatKernel, heat_kernel
 from .mesh import MeshReport, Repaired, as_arrays, check_mesh, repair
 from .spectrum import Spectrum, eigensolve
 from .study import robustness_study
-from .topology import (CriticalPoints, PersistenceDiagram, critical_points, level_sets, persistence,
-                       simplify_critical_points)
+from .topology import (
+    CriticalPoints,
+    PersistenceDiagram,
+    critical_points,
+    level_sets,
+    persistence,
+    simplify_critical_points,
+)
 
-from . import approximation, batch, cluster, fem, figures, filters, heatflow, io, krylov, plot, sampling, study, topology  # noqa: E402, F401  (o3dheat.filters.apply, o3dheat.batch.run, ...)
+# isort: split
+# (after the names above: the submodules as attributes of the package)
+from . import (  # noqa: E402, F401  (o3dheat.filters.apply, o3dheat.batch.run, ...)
+    approximation,
+    batch,
+    cluster,
+    fem,
+    figures,
+    filters,
+    heatflow,
+    io,
+    krylov,
+    plot,
+    sampling,
+    study,
+    topology,
+)
 
 try:  # one place for the version: pyproject.toml, through the installed package's metadata
-    from importlib.metadata import PackageNotFoundError, version as _version
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as _version
 
     __version__ = _version("o3dheat")
 except PackageNotFoundError:  # a source tree that was never installed

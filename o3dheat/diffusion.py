@@ -9,8 +9,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from . import fem
-from . import checks
+from . import checks, fem
 from .errors import MeshError, SolverError
 from .linalg import factorize
 from .mesh import prepare

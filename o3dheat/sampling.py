@@ -26,8 +26,15 @@ import numpy as np
 from . import checks
 from .errors import MeshError
 from .fem import _vertex_normals
-from .mesh import (_degenerate, _non_manifold_edge_faces, _non_manifold_vertex_mask, _unique_rows, as_arrays,
-                   check_points, repair)
+from .mesh import (
+    _degenerate,
+    _non_manifold_edge_faces,
+    _non_manifold_vertex_mask,
+    _unique_rows,
+    as_arrays,
+    check_points,
+    repair,
+)
 
 __all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
            "reconstruct", "transfer", "nearest", "point_arrays", "MIN_FACES", "REMESH_MAX_FACES"]

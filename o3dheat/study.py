@@ -42,8 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .cluster import progress_bar, session, task_error
 from . import heatflow, kernel
+from .cluster import progress_bar, session, task_error
 from .errors import MeshError
 
 __all__ = ["robustness_study", "DESCRIPTORS", "COLUMNS", "load_config"]

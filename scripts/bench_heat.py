@@ -99,9 +99,9 @@ def child(method, path, nfields, grid, out):
     f = np.ascontiguousarray(z["f"][:, 0] if nfields == 1 else z["f"][:, :nfields])
     t = z["paper"] if grid == "paper" else np.concatenate([z["paper"], z["log"]])
     import open3d as o3d
+    from lapy import Solver, TriaMesh  # noqa: F401
 
     import o3dheat  # noqa: F401 - import cost outside the timing
-    from lapy import Solver, TriaMesh  # noqa: F401
     from o3dheat.linalg import available_backends
 
     available_backends()  # loads CHOLMOD and cholespy: library loading is not part of the timing

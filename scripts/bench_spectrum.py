@@ -93,9 +93,9 @@ def child(method, path, k, out):
     z = np.load(path)
     V, F = z["V"], z["F"]
     import scipy.sparse.linalg as spla
+    from lapy import Solver, TriaMesh  # noqa: F401 - import cost outside the timing
 
     import o3dheat
-    from lapy import Solver, TriaMesh  # noqa: F401 - import cost outside the timing
     from o3dheat.linalg import available_backends
 
     available_backends()  # loads CHOLMOD and cholespy: library loading is not part of the timing

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from conftest import icosphere, irregular
 
 import o3dheat
-from conftest import icosphere, irregular
 
 
 @pytest.fixture(scope="module")

@@ -4,11 +4,11 @@
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import grid, icosphere, irregular, torus
 
 import o3dheat
 from o3dheat.fem import voronoi_areas
 from o3dheat.mesh import face_areas
-from conftest import grid, icosphere, irregular, torus
 
 MESHES = {"sphere": icosphere(2), "torus": torus(), "grid": grid(2, 1, 12, 6, jitter=0.3), "irregular": irregular()}
 

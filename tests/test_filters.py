@@ -481,9 +481,9 @@ def test_a_literal_choice_of_none_is_written_none():
 
 # ------------------------------------------------------------------ a chain checked before it runs
 from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
 
 from o3dheat.errors import MeshError  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
 
 _ATTRS = ["height", "positions", "hks", "height_smooth", "nothing", "mean_curvature", "normals", "colors", "t4",
           "out"]

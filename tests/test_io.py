@@ -433,6 +433,7 @@ _SPOOFS = [  # (comment, extra properties, {attribute: shape} expected beside po
 @pytest.mark.parametrize("binary", [True, False])
 def test_crafted_comments_are_ignored(tmp_path, caplog, case, binary):
     import logging
+
     from o3dheat.io import read_geometry
     comment, props, expected = _SPOOFS[case]
     p = tmp_path / "c.ply"

@@ -2,11 +2,12 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from conftest import icosphere, irregular
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import o3dheat
 from o3dheat import HeatKernel
-from conftest import icosphere, irregular
 
 
 @pytest.fixture(scope="module")
@@ -367,7 +368,6 @@ def test_finite_input_never_gives_silent_inf(K, spec):
 # ------------------------------------------------------------------------ truncation certificates
 def _certificate_meshes():
     from conftest import grid, irregular
-
     from test_heatflow import two_parts
 
     V, F = icosphere(2)

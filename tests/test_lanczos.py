@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
+from conftest import icosphere, irregular, torus
 
 import o3dheat
 from o3dheat import fem
 from o3dheat.lanczos import block_lanczos
 from o3dheat.linalg import factorize
-from conftest import icosphere, irregular, torus
 
 
 def operators(mesh):

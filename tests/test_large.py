@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from conftest import torus
 
 import o3dheat
-from conftest import torus
 
 
 @pytest.mark.slow

@@ -5,10 +5,10 @@ import logging
 import numpy as np
 import open3d as o3d
 import pytest
+from conftest import grid, icosphere, torus
 
 import o3dheat
 from o3dheat.mesh import prepare
-from conftest import grid, icosphere, torus
 
 
 def as_tensor(V, F):
@@ -324,7 +324,8 @@ def test_repair_reports_a_moebius_band_and_drops_small_components():
 
 
 def test_repair_carries_attributes_and_never_crashes_on_soups():
-    from hypothesis import given, settings, strategies as st
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
 
     m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6)
     m.vertex["f"] = o3d.core.Tensor(np.arange(len(m.vertex.positions), dtype=np.int32))

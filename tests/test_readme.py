@@ -19,8 +19,9 @@ def test_readme_python_blocks_run(tmp_path, monkeypatch):
 def test_version_and_licence_have_one_source():
     """Issue 23: __version__ comes from the package metadata (pyproject.toml), and the LICENSE file
     is the licence pyproject names."""
-    import tomllib
     from pathlib import Path
+
+    import tomllib
 
     import o3dheat
 

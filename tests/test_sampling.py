@@ -3,8 +3,9 @@
 import numpy as np
 import open3d as o3d
 import pytest
-from hypothesis import given, settings, strategies as st
 from conftest import icosphere
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import o3dheat
 from o3dheat.sampling import decimate, nearest, reconstruct, transfer

@@ -5,11 +5,12 @@ import logging
 import numpy as np
 import open3d as o3d
 import pytest
-from hypothesis import given, settings, strategies as st
+from conftest import grid, icosphere, torus
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import o3dheat
 from o3dheat.linalg import available_backends
-from conftest import grid, icosphere, torus
 
 
 def sphere_truth(k, R=1.0):
@@ -237,7 +238,6 @@ def test_unwritable_cache_is_not_fatal(tmp_path, irregular_mesh, caplog):
 
 def test_eigensolve_operators_matches_eigensolve():
     import scipy.sparse as sp
-
     from conftest import icosphere
 
     from o3dheat.spectrum import eigensolve_operators

@@ -158,9 +158,9 @@ def test_kind_names_use_documented_defaults_and_colliding_names_are_refused():
 
 
 def test_cli_study_every_task_failed_exits_1_without_plots(tmp_path, capsys):
-    from o3dheat.cli import main
-
     import open3d as o3d
+
+    from o3dheat.cli import main
 
     V, F = icosphere(2)
     o3dheat.io.write_mesh(tmp_path / "s.ply", o3d.t.geometry.TriangleMesh(o3d.core.Tensor(V), o3d.core.Tensor(F)))

@@ -701,7 +701,8 @@ def _brute_bad_fans(F, n):
 
 def test_hypothesis_fan_check_on_random_face_subsets():
     """Random holes punched in a sphere and a grid: pinched vertices are found, and only them."""
-    from hypothesis import given, settings, strategies as st
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
 
     meshes = [icosphere(1), grid(1.0, 1.0, 5, 5)]
 
