@@ -13,6 +13,7 @@ from .kernel import VARIANTS, HeatKernel, heat_kernel
 from .mesh import MeshReport, Repaired, as_arrays, check_mesh, repair
 from .spectrum import Spectrum, eigensolve
 from .study import robustness_study
+from .tracking import Tracks, track_critical_points
 from .topology import (
     CriticalPoints,
     PersistenceDiagram,
@@ -60,5 +61,5 @@ __all__ = [
     "feature_driven", "scale_space", "ScaleSpace",
     "robustness_study",
     "MeshError", "SolverError",
-    "__version__",
+    "__version__", "Tracks", "track_critical_points",
 ]

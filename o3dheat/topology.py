@@ -227,6 +227,20 @@ class Surface:
                             "`o3dheat repair IN OUT`), which gives each fan its own vertex")
 
     @property
+    def adjacency(self):
+        """``(ptr, adj)``: the neighbours of vertex ``v`` are ``adj[ptr[v]:ptr[v + 1]]`` (CSR).
+
+        Examples
+        --------
+        >>> import open3d as o3d
+        >>> from o3dheat.topology import Surface
+        >>> ptr, adj = Surface(o3d.t.geometry.TriangleMesh.create_torus()).adjacency
+        >>> int(ptr[1] - ptr[0])
+        6
+        """
+        return self._ptr, self._adj
+
+    @property
     def components(self):
         """Number of connected components (of the referenced vertices)."""
         g = sp.coo_matrix((np.ones(len(self.E)), (self.E[:, 0], self.E[:, 1])), shape=(self.n, self.n))
@@ -939,7 +953,7 @@ def persistence(mesh, f):
         pers = np.abs(death - birth)
         o = _order(-pers, c)
         blocks.append((np.stack([c[o], d[o]], 1), birth[o], death[o], pers[o]))
-    pairs, birth, death, pers = (np.concatenate(x) for x in zip(*blocks))
+    pairs, birth, death, pers = (np.concatenate(x) for x in zip(*blocks, strict=True))
     dim = np.repeat(np.array([0, 1], np.int8), [len(c0), len(c1)])
     essential = np.concatenate([ess_min, ess_sad, ess_max]).astype(np.int64)
     edim = np.repeat(np.array([0, 1, 2], np.int8), [len(ess_min), len(ess_sad), len(ess_max)])
