@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from o3dheat.errors import MeshError
 from o3dheat.filters import check_column, need_attribute, param
 from o3dheat.kernel import mass_of
@@ -45,6 +47,11 @@ class FeatureApprox:
         Persistence threshold of the δ-simplification (units of f, >= 0).
     keep_fraction : float or None
         Alternative to delta, in [0, 1]. With neither, every critical point is a feature.
+    lifetime : float or None
+        Alternative to delta and keep_fraction (> 0, paper time convention): the features are the
+        critical points whose track lives to this time under the heat flow of the field itself
+        (:func:`o3dheat.track_critical_points` over 40 log-spaced times up to it, with the
+        filter's method and variant; :meth:`o3dheat.Tracks.features`).
     variant : str
         The kernel, a key of :data:`o3dheat.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
@@ -75,6 +82,7 @@ class FeatureApprox:
     t: float | None = param(None, ge=0)
     delta: float | None = persistence()
     keep_fraction: float | None = fraction()
+    lifetime: float | None = param(None, gt=0)
     variant: Variant = "weighted"
     k: int = eigenpairs()
     method: Method = "spectral"
@@ -85,8 +93,8 @@ class FeatureApprox:
 
     def __post_init__(self):
         checked(self)
-        if self.delta is not None and self.keep_fraction is not None:
-            raise MeshError("give delta or keep_fraction, not both")
+        if sum(x is not None for x in (self.delta, self.keep_fraction, self.lifetime)) > 1:
+            raise MeshError("give one of delta, keep_fraction and lifetime")
         mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
 
     def plan(self, columns):
@@ -102,16 +110,34 @@ class FeatureApprox:
         return {f"{self.attribute}_glob": 1, f"{self.attribute}_loc": 1}
 
     def __call__(self, geometry):
+        """The feature-driven approximation (see the class docstring).
+
+        Parameters
+        ----------
+        geometry : Open3D TriangleMesh or PointCloud (legacy or tensor), (V, F) pair or mesh-like
+            The input, holding ``attribute``; it is not modified.
+
+        Returns
+        -------
+        open3d.t.geometry.TriangleMesh or open3d.t.geometry.PointCloud
+            A copy of the input (tensor geometry) with ``<attribute>_glob`` and ``<attribute>_loc``
+            added, (n,) each, their sum the field.
+        """
         import o3dheat
 
         site = Site(geometry, self.operators, step=self)
         f, V, F, g = site.scalar_on_surface(self.attribute, self.column)
-        A = o3dheat.simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)
+        phi = smoother(site, self.method, self.k, self.variant, tol=self.tol)
+        if self.lifetime is not None:  # the critical points whose track lives to `lifetime`
+            times = np.r_[0.0, np.geomspace(self.lifetime / 1000, self.lifetime, 40)]
+            A = o3dheat.track_critical_points((V, F), phi.smooth(g, times), times).features()
+        else:
+            A = o3dheat.simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)
         if self.t is None:  # the paper's scales, from the spectrum
             t = float(kernel_of(site, self.k, variant=self.variant).scales(10)[self.scale - 1])
         else:
             t = self.t
-        glob, _ = o3dheat.feature_driven(smoother(site, self.method, self.k, self.variant, tol=self.tol), g, A, t)
+        glob, _ = o3dheat.feature_driven(phi, g, A, t)
         glob = site.from_surface(glob)
         site.set(f"{self.attribute}_glob", glob)
         site.set(f"{self.attribute}_loc", f - glob)

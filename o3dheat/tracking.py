@@ -136,6 +136,26 @@ class Tracks:
         out[alive] = self.positions_of[self.vertex[alive]]
         return out
 
+    def features(self, scale=-1):
+        """The critical vertices of the first field whose tracks live to ``scale`` (an index into
+        :attr:`times`, default the last): the lifetime criterion of feature-driven approximation
+        (beside δ-persistence), A for :func:`o3dheat.feature_driven`.
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d, o3dheat
+        >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40)
+        >>> V = m.vertex.positions.numpy().astype(float)
+        >>> f = 0.2 * V[:, 2] + np.exp(-((V[:, 0] - 1) ** 2 + V[:, 1] ** 2) / 0.05)
+        >>> t = np.geomspace(1e-3, 1.0, 12)
+        >>> tr = o3dheat.track_critical_points(m, o3dheat.heat_flow(m, f, t), t)
+        >>> len(tr.features(0)), len(tr.features())     # the bump's maximum and a saddle do not last
+        (4, 2)
+        """
+        scale = range(len(self.times))[scale]
+        keep = (self.first == 0) & (self.last >= scale)
+        return np.unique(self.vertex[keep, 0])
+
     def euler_characteristic(self, scale):
         """``M − s + m`` of the living tracks at ``scale`` (saddles with their multiplicity).
 

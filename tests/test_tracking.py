@@ -88,3 +88,32 @@ def test_bad_input_is_named(bad, msg):
     F, t = np.c_[x, x, x], np.array([0.0, 0.1, 0.2])
     with pytest.raises(o3dheat.MeshError, match=msg):
         o3dheat.track_critical_points(m, *bad(F, t))
+
+
+def test_feature_approx_picks_the_long_lived_critical_points():
+    """Issue 24: the lifetime criterion beside δ-persistence: a bump that dies early under the
+    heat flow is not a feature with lifetime past its death; it is with a shorter lifetime."""
+    import o3dheat.filters as flt
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40)
+    V = m.vertex.positions.numpy().astype(float)
+    f = 0.2 * V[:, 2] + np.exp(-((V[:, 0] - 1) ** 2 + V[:, 1] ** 2) / 0.05)
+    t = np.geomspace(1e-3, 1.0, 12)
+    tr = o3dheat.track_critical_points(m, o3dheat.heat_flow(m, f, t), t)
+    death = tr.times[tr.last[tr.last < len(t) - 1].max() + 1]  # the shallow maximum is gone here
+    m.vertex["f"] = o3d.core.Tensor(f)
+    flow = o3dheat.HeatFlow(m)
+    outs, features = {}, {}
+    for life in (t[1], 2 * death):
+        out = flt.apply(m, "feature_approx", attribute="f", lifetime=float(life), method="exact", t=0.01)
+        outs[life] = out.vertex["f_glob"].numpy()
+        times = np.r_[0.0, np.geomspace(life / 1000, life, 40)]
+        features[life] = o3dheat.track_critical_points(m, flow.apply(f, times), times).features()
+        # the filter's A is the tracks' long-lived critical points: the same global component
+        np.testing.assert_allclose(outs[life], o3dheat.feature_driven(flow, f, features[life], 0.01)[0], atol=1e-6)
+    assert len(features[t[1]]) == 4 and len(features[2 * death]) == 2  # a maximum and a saddle did not last
+    assert np.abs(outs[t[1]] - outs[2 * death]).max() > 0.01
+    with pytest.raises(o3dheat.MeshError, match="one of delta, keep_fraction and lifetime"):
+        flt.get("feature_approx", attribute="f", lifetime=0.1, delta=0.1)
+    with pytest.raises(o3dheat.MeshError, match="lifetime"):
+        flt.get("feature_approx", attribute="f", lifetime=-1.0)
