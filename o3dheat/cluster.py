@@ -29,6 +29,7 @@ import logging
 import os
 import sys
 
+from ._dask_logs import dask_logs
 from .errors import MeshError, SolverError
 
 __all__ = ["local_cluster", "connect", "session", "register_warm_up", "progress_bar", "task_error", "unguarded_main"]
@@ -157,6 +158,9 @@ def connect(scheduler, warm_up=False):
     Parameters
     ----------
     scheduler : None, "sequential", str or distributed.Client
+        None: a new local cluster (one single-threaded worker per core, closed with the client);
+        "sequential": no client, the caller computes in this process; an address
+        ("tcp://host:port"): the running scheduler there; a Client: used as it is.
     warm_up : bool
         Pay each worker's one-time costs at start: pymeshlab's first call in its main thread
         (:func:`o3dheat.sampling.warm_up`; for jobs that resample meshes) and the topology's
@@ -227,46 +231,12 @@ def close(client, owned):
     if client is None or not owned:
         return
     cluster = getattr(client, "cluster", None)
-    with _dask_logs(logging.CRITICAL):
+    with dask_logs(logging.CRITICAL):
         try:
             client.close()
         finally:
             if cluster is not None:
                 cluster.close()
-
-
-class _DaskLogs(logging.Filter):
-    """Records of Dask and its web stack below ``level`` dropped, the others on one line (no
-    traceback): a worker's death is a task's result (:func:`task_error`), not pages of stack."""
-
-    def __init__(self, level):
-        super().__init__()
-        self.level = level
-
-    def filter(self, record):
-        if not record.name.startswith(("distributed", "dask", "tornado", "asyncio")):
-            return True
-        if record.levelno < self.level:
-            return False
-        text = record.getMessage().strip().splitlines()
-        record.msg, record.args = (text[0] if text else ""), None
-        record.exc_info = record.exc_text = record.stack_info = None
-        return True
-
-
-@contextlib.contextmanager
-def _dask_logs(level):
-    """The handlers that Dask's records reach (the root's and Dask's own) filtered by
-    :class:`_DaskLogs` for the duration."""
-    handlers = {h for name in ("", "distributed", "tornado", "asyncio") for h in logging.getLogger(name).handlers}
-    flt = _DaskLogs(level)
-    for h in handlers:
-        h.addFilter(flt)
-    try:
-        yield
-    finally:
-        for h in handlers:
-            h.removeFilter(flt)
 
 
 @contextlib.contextmanager
@@ -291,7 +261,7 @@ def session(scheduler, warm_up=False):
         finally:
             close(client, owned)
         return
-    with _dask_logs(logging.WARNING):
+    with dask_logs(logging.WARNING):
         try:
             client, owned = connect(scheduler, warm_up=warm_up)
         except MeshError:
@@ -317,7 +287,7 @@ def _warm_up():
 
 
 def register_warm_up(client):
-    """pymeshlab's first call in each worker's main thread and the topology's compiled loops
+    """``pymeshlab``'s first call in each worker's main thread and the topology's compiled loops
     loaded, now and in workers that join later (see :func:`o3dheat.sampling.warm_up` and
     :func:`o3dheat.topology.warm_up`).
 
@@ -377,9 +347,11 @@ def progress_bar(total, progress=None, unit="task"):
     Parameters
     ----------
     total : int
+        Number of steps the bar counts to.
     progress : bool, optional
         True or False; None (default): when stderr is a terminal.
     unit : str
+        What a step is called on the bar ("task" by default).
 
     Examples
     --------

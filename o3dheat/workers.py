@@ -12,6 +12,8 @@ import os
 
 from distributed.diagnostics.plugin import WorkerPlugin
 
+from ._dask_logs import DaskLogs, dask_logs
+
 __all__ = ["PinToCore", "OneLineLogs"]
 
 
@@ -77,7 +79,7 @@ class OneLineLogs(WorkerPlugin):
     >>> from o3dheat.workers import OneLineLogs
     >>> plugin = OneLineLogs()
     >>> plugin.setup(None); plugin.teardown(None)
-    >>> [f for h in logging.getLogger().handlers for f in h.filters if type(f).__name__ == "_DaskLogs"]
+    >>> [f for h in logging.getLogger().handlers for f in h.filters if type(f).__name__ == "DaskLogs"]
     []
     """
 
@@ -90,9 +92,7 @@ class OneLineLogs(WorkerPlugin):
         --------
         See the class.
         """
-        from o3dheat.cluster import _dask_logs
-
-        self._running = _dask_logs(logging.WARNING)
+        self._running = dask_logs(logging.WARNING)
         self._running.__enter__()
 
     def teardown(self, worker):
@@ -103,13 +103,11 @@ class OneLineLogs(WorkerPlugin):
         --------
         See the class.
         """
-        from o3dheat.cluster import _DaskLogs
-
         running = getattr(self, "_running", None)
         if running is not None:
             running.__exit__(None, None, None)
             self._running = None
-        closing = _DaskLogs(logging.CRITICAL)  # to the end of the process
+        closing = DaskLogs(logging.CRITICAL)  # to the end of the process
         for name in ("", "distributed", "tornado", "asyncio"):
             for h in logging.getLogger(name).handlers:
                 h.addFilter(closing)
