@@ -131,5 +131,6 @@ def _hide_empty_navigation(app, pagename, templatename, context, doctree):
 
 
 def setup(app):
+    """Sphinx's hook for this project's own handlers (conf.py as a local extension)."""
     app.connect("source-read", _undocumented_data)
     app.connect("html-page-context", _hide_empty_navigation)

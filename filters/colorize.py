@@ -80,6 +80,18 @@ class Colorize:
         return {self.output: 3}
 
     def __call__(self, geometry):
+        """Colour the vertices (see the class docstring).
+
+        Parameters
+        ----------
+        geometry : Open3D TriangleMesh or PointCloud (legacy or tensor), (V, F) pair or mesh-like
+            The input, holding ``attribute``; it is not modified.
+
+        Returns
+        -------
+        open3d.t.geometry.TriangleMesh or open3d.t.geometry.PointCloud
+            A copy of the input (tensor geometry) with the colour attribute ``output`` added: (n, 3) float32 in [0, 1].
+        """
         colormap = _colormap(self.colormap)
         site = Site(geometry, step=self)
         f = site.scalar(self.attribute, self.column)

@@ -71,6 +71,20 @@ class CriticalPointsFilter:
         return {self.output or f"{self.attribute}_critical": 1}
 
     def __call__(self, geometry):
+        """Label the critical points (see the class docstring).
+
+        Parameters
+        ----------
+        geometry : Open3D TriangleMesh or PointCloud (legacy or tensor), (V, F) pair or mesh-like
+            The input, holding ``attribute``; it is not modified.
+
+        Returns
+        -------
+        open3d.t.geometry.TriangleMesh or open3d.t.geometry.PointCloud
+            A copy of the input (tensor geometry) with ``output`` added: (n,) int8, 0 regular,
+            1 minimum, 2 saddle, 3 maximum (on a point cloud: at the points nearest the critical
+            vertices of its reconstructed surface).
+        """
         import o3dheat
 
         site = Site(geometry, self.operators, step=self)

@@ -129,6 +129,19 @@ class HeatSmooth:
         return {self.output or f"{self.attribute}_smooth": self._columns_out(c)}
 
     def __call__(self, geometry):
+        """Smooth the attribute (see the class docstring).
+
+        Parameters
+        ----------
+        geometry : Open3D TriangleMesh or PointCloud (legacy or tensor), (V, F) pair or mesh-like
+            The input, holding ``attribute``; it is not modified.
+
+        Returns
+        -------
+        open3d.t.geometry.TriangleMesh or open3d.t.geometry.PointCloud
+            A copy of the input (tensor geometry) with ``output`` added: (n,) for one time, (n, T)
+            for T times, (n, c) for c columns at one time.
+        """
         site = Site(geometry, self.operators, step=self)
         f = site.attribute(self.attribute, self.column)
         count = time_count(self.times, self.scales)

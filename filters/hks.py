@@ -88,6 +88,18 @@ class Hks:
         return {self.output: time_count(self.times, self.scales)}
 
     def __call__(self, geometry):
+        """Heat kernel signatures (see the class docstring).
+
+        Parameters
+        ----------
+        geometry : Open3D TriangleMesh or PointCloud (legacy or tensor), (V, F) pair or mesh-like
+            The input; it is not modified.
+
+        Returns
+        -------
+        open3d.t.geometry.TriangleMesh or open3d.t.geometry.PointCloud
+            A copy of the input (tensor geometry) with ``output`` added: (n, T), one column per time.
+        """
         site = Site(geometry, self.operators, step=self)
         K = kernel_of(site, self.k, self.variant, self.normalize)
         t = times_of(K, self.times, self.scales, self.grid)

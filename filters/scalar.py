@@ -74,6 +74,19 @@ class Scalar:
         return {self.output or ("height" if self.kind == "height" else self.kind): 1}
 
     def __call__(self, geometry):
+        """Make the field (see the class docstring).
+
+        Parameters
+        ----------
+        geometry : Open3D TriangleMesh or PointCloud (legacy or tensor), (V, F) pair or mesh-like
+            The input (holding ``attribute`` for "noise"); it is not modified.
+
+        Returns
+        -------
+        open3d.t.geometry.TriangleMesh or open3d.t.geometry.PointCloud
+            A copy of the input (tensor geometry) with the field added: (n,), or the shape of
+            ``attribute`` for "noise"; named ``output``, else the kind or "<attribute>_noisy".
+        """
         site = Site(geometry, self.operators, step=self)
         if self.kind == "height":
             values, name = site.P[:, self.axis].copy(), "height"

@@ -13,7 +13,6 @@ from .kernel import VARIANTS, HeatKernel, heat_kernel
 from .mesh import MeshReport, Repaired, as_arrays, check_mesh, repair
 from .spectrum import Spectrum, eigensolve
 from .study import robustness_study
-from .tracking import Tracks, track_critical_points
 from .topology import (
     CriticalPoints,
     PersistenceDiagram,
@@ -22,6 +21,7 @@ from .topology import (
     persistence,
     simplify_critical_points,
 )
+from .tracking import Tracks, track_critical_points
 
 # isort: split
 # (after the names above: the submodules as attributes of the package)

@@ -39,6 +39,7 @@ def project(f, A):
     Parameters
     ----------
     f : (n,) or (n, c) array_like
+        The field(s), one row per vertex.
     A : sequence of int or (n,) bool array_like
         Vertex indices (repeats allowed) or a mask.
 
@@ -66,6 +67,7 @@ def feature_driven(kernel, f, A, t):
     kernel : HeatKernel or HeatFlow
         The spectral kernel or the full one.
     f : (n,) or (n, c) array_like
+        The field(s), one row per vertex of the kernel's mesh.
     A : sequence of int or (n,) bool array_like
         The feature vertices, for example ``o3dheat.simplify_critical_points(mesh, f, delta)``.
     t : float or (T,) array_like

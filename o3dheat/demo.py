@@ -142,6 +142,7 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     noise : float
         Standard deviation of the Gaussian noise, relative to the range of the height function.
     seed : int
+        Seed of the noise (numpy's ``default_rng``).
     mesh : Open3D mesh, optional
         Use this mesh instead of the embedded one.
     echo : callable

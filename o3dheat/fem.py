@@ -81,6 +81,7 @@ def adjacency_pattern(F, n):
     Parameters
     ----------
     F : (m, 3) int ndarray
+        The triangles, as indices of their vertices (< n).
     n : int
         Vertices.
 
@@ -152,7 +153,9 @@ def voronoi_areas(V, F):
     Parameters
     ----------
     V : (n, 3) float64 ndarray
+        Vertex positions.
     F : (m, 3) int ndarray
+        The triangles, as indices of their vertices.
 
     Returns
     -------
@@ -176,6 +179,7 @@ def operators(V, F, mass="consistent", pattern=None):
     Parameters
     ----------
     V : (n, 3) float64 ndarray
+        Vertex positions.
     F : (m, 3) int ndarray
         Every face with a positive area.
     mass : str
@@ -217,7 +221,9 @@ def mass_matrix(V, F, kind="consistent"):
     Parameters
     ----------
     V : (n, 3) float64 ndarray
+        Vertex positions.
     F : (m, 3) int ndarray
+        The triangles, as indices of their vertices.
     kind : str
         A key of :data:`MASS_KINDS`: "consistent", ``B[i, j] = (|t_r| + |t_s|)/12``,
         ``B[i, i] = sum |t|/6`` (the paper's B); "lumped", its row sums on the diagonal;
@@ -265,7 +271,9 @@ def mean_curvature(V, F):
     Parameters
     ----------
     V : (n, 3) float64 ndarray
+        Vertex positions.
     F : (m, 3) int ndarray
+        The triangles, as indices of their vertices.
 
     Returns
     -------
@@ -296,7 +304,9 @@ def gaussian_curvature(V, F):
     Parameters
     ----------
     V : (n, 3) float64 ndarray
+        Vertex positions.
     F : (m, 3) int ndarray
+        The triangles, as indices of their vertices.
 
     Returns
     -------

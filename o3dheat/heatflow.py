@@ -612,7 +612,7 @@ class HeatFlow:
         F, units = _unit_columns(F)
         pending = None  # the next group's factor, made on another core during this group's solves
         try:
-            for gi, (g, gamma) in enumerate(zip(groups, gammas)):
+            for gi, (g, gamma) in enumerate(zip(groups, gammas, strict=True)):
                 idx = order[g]
                 tg = taus[idx]
                 t0 = time.perf_counter()
@@ -733,7 +733,9 @@ def heat_flow(mesh, f, t, *, variant="weighted", normalize=None, transfer=None, 
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
+        The surface, repaired for the FEM by :func:`o3dheat.mesh.prepare` (not modified).
     f : (n,) or (n, c) array_like
+        The field(s), one row per vertex.
     t : float or (T,) array_like
         Times >= 0, paper convention ``exp(−λ t / 2)``.
     variant, normalize, transfer, backend

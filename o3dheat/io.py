@@ -102,6 +102,8 @@ def write_mesh(path, mesh, binary=True, overwrite=True):
     path : str or Path
         Output file ending in ``.ply`` or ``.npz``.
     mesh : o3d.t.geometry.TriangleMesh or o3d.geometry.TriangleMesh
+        The mesh: its positions, triangles and every vertex attribute (normals and colours included) are
+        written.
     binary : bool
         PLY only: binary little-endian (default) or ASCII.
     overwrite : bool
@@ -209,7 +211,7 @@ def _ply_vertex_table(attrs, path):
                 raise MeshError(f"cannot write {path}: vertex attribute {key!r} would be stored as "
                                 f"property {p!r}, {why}: rename it")
             owner[p] = key
-        fields.extend((p, a.dtype.str) for p, a in zip(props, arrays))
+        fields.extend((p, a.dtype.str) for p, a in zip(props, arrays, strict=True))
         cols.extend(arrays)
 
     if "normals" in attrs:
@@ -285,7 +287,7 @@ def _write(path, attrs, F, binary, overwrite):
     fields, cols, comments = _ply_vertex_table(attrs, path)
     try:
         vert = np.empty(n, dtype=[(nm, np.dtype(dt).newbyteorder("<").str) for nm, dt in fields])
-        for (nm, _), col in zip(fields, cols):
+        for (nm, _), col in zip(fields, cols, strict=True):
             vert[nm] = col
         elements = [PlyElement.describe(vert, "vertex")]
         if F is not None:
@@ -311,7 +313,7 @@ def _write_binary_ply(fh, ply, vert, F):
 
 
 def atomic_write(path, write):
-    """Write a file atomically: ``write(binary_file)`` goes to a temporary file in the same
+    r"""Write a file atomically: ``write(binary_file)`` goes to a temporary file in the same
     folder, which then replaces ``path``. On any error the temporary file is removed and
     ``path`` is untouched. The file gets the permissions ``open()`` would give it.
 
@@ -326,7 +328,7 @@ def atomic_write(path, write):
     >>> p = os.path.join(tempfile.mkdtemp(), "data.bin")
     >>> io.atomic_write(p, lambda out: out.write(bytes([1, 2, 3])))
     >>> open(p, "rb").read()
-    b'\\x01\\x02\\x03'
+    b'\x01\x02\x03'
     >>> def fails(out):
     ...     out.write(b"half")
     ...     raise RuntimeError("interrupted")
@@ -335,7 +337,7 @@ def atomic_write(path, write):
     ... except RuntimeError:
     ...     pass
     >>> open(p, "rb").read(), os.listdir(os.path.dirname(p))    # untouched, no temporary file left
-    (b'\\x01\\x02\\x03', ['data.bin'])
+    (b'\x01\x02\x03', ['data.bin'])
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
@@ -373,15 +375,15 @@ def _remove_stale(folder, prefix, age=3600.0):
 
 
 def atomic_write_text(path, text):
-    """Write a text file (UTF-8) atomically (see :func:`atomic_write`).
+    r"""Write a text file (UTF-8) atomically (see :func:`atomic_write`).
 
     Examples
     --------
     >>> import os, tempfile, o3dheat.io as io
     >>> p = os.path.join(tempfile.mkdtemp(), "note.txt")
-    >>> io.atomic_write_text(p, "λ₂ = 2\\n")
+    >>> io.atomic_write_text(p, "λ₂ = 2\n")
     >>> open(p, encoding="utf-8").read()
-    'λ₂ = 2\\n'
+    'λ₂ = 2\n'
     """
     atomic_write(path, lambda fh: fh.write(text.encode("utf-8")))
 
@@ -898,7 +900,7 @@ _TRIANGLE_LISTS = {"face": {"vertex_indices": 3, "vertex_index": 3}}
 
 
 def _read_plydata(path):
-    """plyfile's PlyData of a file, all-triangle face lists read in one block."""
+    """``plyfile``'s PlyData of a file, all-triangle face lists read in one block."""
     from plyfile import PlyData, PlyElementParseError
 
     try:

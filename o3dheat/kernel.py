@@ -192,6 +192,7 @@ def heat_kernel(mesh, k=100, variant="weighted", normalize=None, transfer=None, 
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
+        The surface, repaired for the FEM by :func:`o3dheat.mesh.prepare` (not modified).
     k : int
         Eigenpairs.
     variant : str
@@ -518,6 +519,7 @@ class HeatKernel:
         Parameters
         ----------
         count : int
+            Number of times (1 to 100000).
         grid : str
             One of :data:`GRIDS`.
 
@@ -557,7 +559,9 @@ class HeatKernel:
         Parameters
         ----------
         f : (n,) array_like
+            The field, one value per vertex.
         t : float or (T,) array_like
+            Time(s) (paper convention, >= 0): one error per time.
 
         Returns
         -------
@@ -625,6 +629,7 @@ class HeatKernel:
         Parameters
         ----------
         f : (n,) or (n, c) array_like
+            The field(s), one row per vertex.
         t : float
             Time (>= 0). Large ``λ_k t`` makes the inverse ill-conditioned (``exp(λ_k t / 2)``).
 
@@ -674,7 +679,9 @@ class HeatKernel:
         Parameters
         ----------
         f : (n,) array_like
+            The field, one value per vertex.
         t : float or (T,) array_like
+            Time(s) (paper convention, >= 0): one bound per time.
 
         Returns
         -------

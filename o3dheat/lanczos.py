@@ -47,7 +47,7 @@ def _runs(idx, gap=8):
     cut = np.flatnonzero(np.diff(idx) > gap) + 1
     starts = np.concatenate([[idx[0]], idx[cut]])
     ends = np.concatenate([idx[cut - 1], [idx[-1]]]) + 1
-    return list(zip(starts.tolist(), ends.tolist()))
+    return list(zip(starts.tolist(), ends.tolist(), strict=True))
 
 
 def _b_orthonormalize_block(W, rows, rng, BW=None, out=None):
@@ -190,6 +190,7 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
     max_basis : int, optional
         Basis size before a thick restart; default ``max(2k, k + 4b)`` (capped at n).
     max_restarts : int
+        Thick restarts allowed before a ConvergenceError.
     seed : int
         Seed of the random start block.
     refine : bool
@@ -347,6 +348,7 @@ def rayleigh_ritz(L, B, X, chunk=32, overwrite=False):
     Parameters
     ----------
     L, B : (n, n) scipy.sparse matrices
+        The pencil: symmetric, ``B`` positive definite.
     X : (n, k) ndarray
         A basis of the subspace (need not be B-orthonormal).
     chunk : int

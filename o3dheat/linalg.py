@@ -323,6 +323,7 @@ class Factor:
         Parameters
         ----------
         b : (n,) or (n, c) float64 array_like
+            Right-hand side(s), one row per row of ``A``.
         out : ndarray, optional
             A C-ordered float64 array of the shape of ``b`` (not overlapping it) to hold ``x``:
             repeated solves then reuse its memory.

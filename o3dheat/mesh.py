@@ -170,6 +170,7 @@ def check_points(P, planar=True, min_points=4, what="the point cloud"):
     Parameters
     ----------
     P : (n, 3) array_like
+        The point positions.
     planar : bool
         Whether points in one plane are acceptable (a flat patch: robust point-cloud Laplacians
         take it; a reconstruction of a closed surface does not).
@@ -328,7 +329,9 @@ def face_areas(V, F):
     Parameters
     ----------
     V : (n, 3) float64 ndarray
+        Vertex positions.
     F : (m, 3) int ndarray
+        The triangles, as indices of their vertices.
 
     Returns
     -------
@@ -553,6 +556,7 @@ class MeshReport:
 
     @property
     def ok(self):
+        """True when the check found no problem (``problems`` is empty)."""
         return not self.problems
 
     def __str__(self):
@@ -632,6 +636,7 @@ def check_mesh(mesh, weld=True):
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
+        The mesh to inspect (not modified).
     weld : bool
         As for :func:`prepare`: False reports the mesh with its copies apart.
 
@@ -874,6 +879,7 @@ def prepare(mesh, weld=True):
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
+        The mesh to convert (not modified).
     weld : bool
         Weld the referenced vertices with exactly equal coordinates (the default; logged as a
         warning with their number). False keeps them apart: each copy then lies on a boundary.
@@ -1043,6 +1049,7 @@ def repair(mesh, weld=True, split=True, orient=True, min_component_faces=0):
     Parameters
     ----------
     mesh : Open3D mesh (tensor or legacy), (V, F) or a resampling
+        The mesh to repair (not modified).
     weld, split, orient : bool
         Steps to run (all by default).
     min_component_faces : int

@@ -166,6 +166,7 @@ def row_parts(n, chunk=None):
     Parameters
     ----------
     n : int
+        Number of rows (or items), >= 0.
     chunk : int, optional
         Rows per part. By default the parts are equal, at most :data:`CHUNK` rows, and a multiple
         of 4 of them (one part below ``CHUNK / 4`` rows): 2 or 4 threads get as many rows each

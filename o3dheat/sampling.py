@@ -90,6 +90,7 @@ class Resampled:
 
     @property
     def arrays(self):
+        """The sampling as the pair ``(V, F)``: (r, 3) float64 positions, (m, 3) int64 faces."""
         return self.V, self.F
 
     def __repr__(self):
@@ -137,6 +138,7 @@ def decimate(mesh, reduction=0.7, target_faces=None):
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
+        The surface to resample (not modified).
     reduction : float in [0, 1)
         Fraction of the faces to remove; at least :data:`MIN_FACES` faces must remain.
     target_faces : int, optional
@@ -210,7 +212,7 @@ def warm_up():
 
 
 def _isotropic(ms, pymeshlab, length, iterations, selected):
-    """pymeshlab's isotropic explicit remeshing with every parameter given (its defaults, but the
+    """``pymeshlab``'s isotropic explicit remeshing with every parameter given (its defaults, but the
     target length, iterations and selection): pymeshlab was seen to reuse a previous call's
     ``selectedonly=True``, so nothing is left to what an earlier call set."""
     ms.meshing_isotropic_explicit_remeshing(
@@ -268,9 +270,11 @@ def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None, max_f
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
+        The surface to resample (not modified).
     target_edge_length : float, optional
         In the units of the mesh (> 0, smaller than the bounding box).
     iterations : int
+        Iterations of pymeshlab's isotropic explicit remeshing (1 to 1000).
     edge_factor : float, optional
         Instead of ``target_edge_length``: a multiple of the mesh's mean edge length (scale-free,
         for studies over meshes of different sizes). With neither given: ``edge_factor=1`` (a
@@ -327,6 +331,7 @@ def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6, max_faces=REME
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
+        The surface to resample (not modified).
     coarse, fine : float
         Target edge lengths of the two halves, as multiples of the mesh's mean edge length.
     axis : int
@@ -433,12 +438,14 @@ def jitter(mesh, amount=0.3, seed=0):
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
+        The surface to resample (not modified).
     amount : float
         Standard deviation of the proposed displacement, per tangent direction, as a fraction of
         the mean edge length (>= 0). On a mesh without thin triangles the limiter seldom acts
         below about 0.1; large amounts (> 1) are shrunk almost everywhere (the mean move then
         stays a fraction of an edge length, see ``moved_mean``).
     seed : int
+        Seed of the random proposals (numpy's ``default_rng``), >= 0.
 
     Returns
     -------
@@ -505,7 +512,9 @@ def subdivide(mesh, iterations=1, method="midpoint"):
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
+        The surface to resample (not modified).
     iterations : int
+        Number of subdivisions, 0 to 6 (each multiplies the faces by 4; 0 returns the mesh as it is).
     method : {"midpoint", "loop"}
         "midpoint" keeps the surface (new vertices on the old edges); "loop" smooths it.
 
@@ -675,7 +684,10 @@ def transfer(values, source, target):
     values : (r,) or (r, c) array_like
         One row per source vertex.
     source : Open3D mesh, (V, F) or Resampled
+        The surface on whose vertices ``values`` are given.
     target : Open3D mesh, (V, F), Resampled, or (p, 3) array of points
+        Where the function is evaluated: the vertices of a mesh, or points (projected on the closest
+        point of the source).
 
     Returns
     -------

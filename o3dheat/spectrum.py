@@ -190,6 +190,7 @@ class Spectrum:
         Parameters
         ----------
         path : str or Path
+            A ``.npz`` file written by :meth:`save`.
 
         Returns
         -------
@@ -245,9 +246,9 @@ def _check_loaded(s, path):
 
 
 def default_cache_dir():
-    """Folder of the on-disk spectrum cache: ``$O3DHEAT_CACHE``, else the platform's user cache
+    r"""Folder of the on-disk spectrum cache: ``$O3DHEAT_CACHE``, else the platform's user cache
     folder (``$XDG_CACHE_HOME/o3dheat`` or ``~/.cache/o3dheat`` on Linux, ``~/Library/Caches/o3dheat``
-    on macOS, ``%LOCALAPPDATA%\\o3dheat\\Cache`` on Windows).
+    on macOS, ``%LOCALAPPDATA%\o3dheat\Cache`` on Windows).
 
     Returns
     -------
@@ -414,7 +415,9 @@ def shared_eigensolve(V, F, k=100, mass="consistent", cache=None):
     Parameters
     ----------
     V : (n, 3) float64 ndarray
+        Vertex positions.
     F : (m, 3) int ndarray
+        The triangles, as indices of their vertices.
     k : int
         Eigenpairs, capped at the number of vertices :func:`eigensolve` solves on (referenced,
         duplicates welded: an STL's triangle soup has three copies of each corner).
@@ -557,10 +560,11 @@ def _solve_lanczos(L, B, k, sigma, backend, seed, tol, block):
     used = fac.backend
     buf = {}  # block_lanczos keeps no solution past the next solve: one buffer per shape serves all
 
+    # F821 silenced in solve: ruff sees the `del buf, fac` below, after solve's last call
     def solve(Y):
-        if Y.shape not in buf:
-            buf[Y.shape] = np.empty(Y.shape)
-        return fac.solve(Y, out=buf[Y.shape])
+        if Y.shape not in buf:  # noqa: F821 - deleted after the last call
+            buf[Y.shape] = np.empty(Y.shape)  # noqa: F821 - deleted after the last call
+        return fac.solve(Y, out=buf[Y.shape])  # noqa: F821 - deleted after the last call
 
     _, Xv, info = block_lanczos(L, B, solve, k, sigma, block=block, tol=max(tol, 1e-14), seed=seed,
                                 refine=False)
@@ -824,7 +828,6 @@ def _canonical_bases(lam, X, B, scale, rel=1e-9):
 
 
 def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
-    r = L.shape[0]
     B_in = B
     use_dense = method == "dense"
     s = float("nan") if use_dense else (_shift(B) if sigma is None else float(sigma))

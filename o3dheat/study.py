@@ -186,7 +186,7 @@ def _task(mesh_name, res_name, spec, ref, cfg):
                     back = transfer(value, r, ref["V"])
                     l2, inf = _rel(back, base, ref["areas"])
                     scales, ts = range(1, len(ref["times"][kern]) + 1), ref["times"][kern]
-                for s, t, x, y in zip(scales, ts, l2, inf):
+                for s, t, x, y in zip(scales, ts, l2, inf, strict=True):
                     rows.append([mesh_name, res_name, kind, kern, d, int(s), float(t), float(x), float(y),
                                  len(r.V), ""])
             return rows
@@ -495,7 +495,7 @@ def _record(out, state):
 
 
 def load_config(path):
-    """A study configuration from TOML: ``meshes``, ``[[resampling]]`` tables and settings.
+    r"""A study configuration from TOML: ``meshes``, ``[[resampling]]`` tables and settings.
 
     ::
 
@@ -524,7 +524,7 @@ def load_config(path):
     >>> d = tempfile.mkdtemp()
     >>> o3dheat.io.write_mesh(os.path.join(d, "s.ply"), o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
     >>> with open(os.path.join(d, "study.toml"), "w") as fh:
-    ...     _ = fh.write('kernels = ["weighted"]\\n[meshes]\\nsphere = "s.ply"\\n[[resampling]]\\nkind = "jitter"\\n')
+    ...     _ = fh.write('kernels = ["weighted"]\n[meshes]\nsphere = "s.ply"\n[[resampling]]\nkind = "jitter"\n')
     >>> kw = load_config(os.path.join(d, "study.toml"))
     >>> sorted(kw), kw["kernels"], kw["resamplings"]
     (['kernels', 'meshes', 'resamplings'], ['weighted'], [{'kind': 'jitter'}])

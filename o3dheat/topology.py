@@ -970,7 +970,9 @@ def simplify_critical_points(mesh, f, delta=None, keep_fraction=None, diagram=No
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh, (V, F) tuple or Surface
+        The surface (a :class:`Surface` when already built, saving its construction).
     f : (n,) array_like
+        The field, one value per vertex.
     delta : float, optional
         Persistence threshold in the units of f (>= 0). With neither delta nor keep_fraction,
         every critical point is kept (delta = 0).
@@ -1023,7 +1025,9 @@ def level_sets(mesh, f, values=None, count=None, color=(0.0, 0.0, 0.0)):
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
+        The surface.
     f : (n,) array_like
+        The field, one value per vertex.
     values : sequence of float, optional
         The iso-values.
     count : int, optional

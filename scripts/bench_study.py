@@ -78,7 +78,7 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         robustness_study(*small, scheduler="sequential", **small_kw)  # imports, first calls
         for i in range(args.repeat):
-            for label, make in zip(labels, makers):
+            for label, make in zip(labels, makers, strict=True):
                 if make is None:
                     c0, t0 = _cpu(), time.perf_counter()
                     tables.append(robustness_study(meshes, RESAMPLINGS, out=f"{tmp}/s{i}", scheduler="sequential",

@@ -166,35 +166,35 @@ def main(argv=None):
     for name in args.meshes.split(","):
         for n in (int(s) for s in args.sizes.split(",")):
             V, F = makers[name](n)
-            t_s, S = best_of(lambda: Surface((V, F)), args.repeat)
+            t_s, S = best_of(lambda: Surface((V, F)), args.repeat)  # noqa: B023 - best_of calls it at once
             gudhi = not args.no_gudhi and len(V) <= args.gudhi_max
             if gudhi:
                 E, used = gudhi_edges(F)
             mem = []
             if not args.no_memory:
-                del S
-                b_build = peak_bytes(lambda: Surface((V, F)))
+                S = None  # freed before the peak is measured
+                b_build = peak_bytes(lambda: Surface((V, F)))  # noqa: B023 - peak_bytes calls it at once
                 S = Surface((V, F))
                 mem = [surface_bytes(S) / len(V), b_build / len(V)]
             for label, f in fields(V).items():
-                t_cp, cp = best_of(lambda: o3dheat.critical_points(S, f), args.repeat)
-                t_cpv, _ = best_of(lambda: o3dheat.critical_points((V, F), f), min(args.repeat, 2))
-                t_p, d = best_of(lambda: o3dheat.persistence(S, f), args.repeat)
+                t_cp, cp = best_of(lambda: o3dheat.critical_points(S, f), args.repeat)  # noqa: B023 - best_of calls it at once
+                t_cpv, _ = best_of(lambda: o3dheat.critical_points((V, F), f), min(args.repeat, 2))  # noqa: B023 - best_of calls it at once
+                t_p, d = best_of(lambda: o3dheat.persistence(S, f), args.repeat)  # noqa: B023 - best_of calls it at once
                 if gudhi:
-                    t_g, g = best_of(lambda: gudhi_persistence(F, E, used, f), min(args.repeat, 2))
+                    t_g, g = best_of(lambda: gudhi_persistence(F, E, used, f), min(args.repeat, 2))  # noqa: B023 - best_of calls it at once
                     ours = [finite(d.intervals(0)), finite(d.intervals(1)[:, ::-1])]
-                    agree = "yes" if all(np.array_equal(a, finite(b)) for a, b in zip(ours, g)) else "NO"
+                    agree = "yes" if all(np.array_equal(a, finite(b)) for a, b in zip(ours, g, strict=True)) else "NO"
                     ratios = f"{t_g:.2f} | {t_g / t_p:.1f}x | {t_g / (t_s + t_p):.1f}x | {agree}"
                 else:
                     ratios = "- | - | - | -"
                 extra = ""
                 if not args.no_memory:
-                    m_cp = peak_bytes(lambda: o3dheat.critical_points(S, f)) / len(V)
-                    m_p = peak_bytes(lambda: o3dheat.persistence(S, f)) / len(V)
+                    m_cp = peak_bytes(lambda: o3dheat.critical_points(S, f)) / len(V)  # noqa: B023 - peak_bytes calls it at once
+                    m_p = peak_bytes(lambda: o3dheat.persistence(S, f)) / len(V)  # noqa: B023 - peak_bytes calls it at once
                     extra = " | " + " | ".join(f"{x:.0f}" for x in mem + [m_cp, m_p])
                 print(f"| {name} | {len(V)} | {label} | {cp.counts} | {t_s:.3f} | {t_cp:.3f} | {t_cpv:.3f} | "
                       f"{t_p:.3f} | {ratios}{extra} |", flush=True)
-            del S
+            S = None
             gc.collect()
     return 0
 

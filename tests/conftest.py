@@ -76,7 +76,7 @@ def irregular(seed=0):
             Vn.append((V[i] + V[j]) / 2)
         return cache[key]
 
-    for t, s in zip(Fa, side):
+    for t, s in zip(Fa, side, strict=True):
         if s:
             a, b, c = t
             ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
@@ -93,7 +93,7 @@ def irregular(seed=0):
             continue
         # fan-triangulate the polygon with inserted midpoints
         poly = []
-        for (x, y), mm in zip(((a, b), (b, c), (c, a)), ms):
+        for (x, _y), mm in zip(((a, b), (b, c), (c, a)), ms, strict=True):
             poly.append(x)
             if mm is not None:
                 poly.append(mm)

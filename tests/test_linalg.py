@@ -177,7 +177,7 @@ def test_concurrent_solves_from_user_threads(spd):
         t.start()
     for t in threads:
         t.join()
-    for e, g in zip(expected, got):
+    for e, g in zip(expected, got, strict=True):
         np.testing.assert_array_equal(e, g)
 
 

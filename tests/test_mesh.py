@@ -253,7 +253,7 @@ def test_unique_rows_matches_numpy(high):
     A[300:400] = A[:100]
     want = np.unique(A, axis=0, return_index=True, return_counts=True)
     got = _unique_rows(A, return_index=True, return_counts=True)
-    for w, g in zip(want, got):
+    for w, g in zip(want, got, strict=True):
         np.testing.assert_array_equal(w, g)
     np.testing.assert_array_equal(_unique_rows(A), want[0])
     assert _unique_rows(np.zeros((0, 3), int)).shape == (0, 3)

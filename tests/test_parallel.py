@@ -136,7 +136,7 @@ def test_reductions_do_not_depend_on_the_thread_count(monkeypatch):
             rows.sub(Z, X[:, :8], np.eye(8))
             out[t] = (rows.inner(X, Y), rows.dot(X, np.ones((30, 4))), rows.spmul(0, Y), Z)
     for t in (2, 3):
-        for a, b in zip(out[1], out[t]):
+        for a, b in zip(out[1], out[t], strict=True):
             np.testing.assert_array_equal(a, b)
     np.testing.assert_allclose(out[1][0], X.T @ Y, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(out[1][2], M @ Y, rtol=1e-12, atol=1e-12)

@@ -163,7 +163,7 @@ def test_cache(tmp_path, irregular_mesh):
 
 
 def test_cache_key_has_the_tolerance_and_tampered_files_are_recomputed(tmp_path, irregular_mesh, caplog):
-    loose = o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="lanczos", tol=1e-2)
+    o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="lanczos", tol=1e-2)  # the loose one
     tight = o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="lanczos", tol=1e-10)
     assert tight.timings["cache"] is False and len(list(tmp_path.glob("spectrum-*.npz"))) == 2
     assert o3dheat.eigensolve(irregular_mesh, k=10, cache=tmp_path, method="lanczos", tol=1e-2).timings["cache"]
@@ -208,7 +208,6 @@ def test_bad_sigma_and_mass():
 
 def test_dense_refused_when_too_large(monkeypatch):
     import o3dheat.spectrum as S
-    from o3dheat.errors import ConvergenceError
 
     V, F = icosphere(2)  # 162 vertices
     ref = o3dheat.eigensolve((V, F), k=100).eigenvalues  # k > n/2: dense

@@ -307,7 +307,7 @@ def test_bools_strings_and_negatives_are_refused_before_any_work():
     t = robustness_study({"s": icosphere(1)}, {"neg": {"kind": "jitter", "amount": -1}, "seed": {"kind": "jitter",
                          "seed": -1}, "text": {"kind": "decimate", "reduction": "half"}}, kernels=["weighted"],
                          descriptors=["hks_density"], scheduler="sequential", progress=False, k=8, scales=2)
-    errors = dict(zip(t["resampling"], t["error"]))
+    errors = dict(zip(t["resampling"], t["error"], strict=True))
     assert "amount must be a number >= 0, got -1" in errors["neg"]
     assert "seed must be an integer from 0" in errors["seed"]
     assert "reduction must be a number in [0, 1), got 'half'" in errors["text"]

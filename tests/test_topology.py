@@ -177,7 +177,7 @@ def test_critical_points_match_brute_force(name):
         ref = brute_critical(F, f)
         assert cp.minima.tolist() == sorted(ref["min"]), label
         assert cp.maxima.tolist() == sorted(ref["max"]), label
-        assert dict(zip(cp.saddles.tolist(), cp.saddle_multiplicity.tolist())) == ref["saddle"], label
+        assert dict(zip(cp.saddles.tolist(), cp.saddle_multiplicity.tolist(), strict=True)) == ref["saddle"], label
 
 
 def test_monkey_saddle_has_multiplicity_two():
@@ -562,7 +562,7 @@ def several():
     parts = [icosphere(1), grid(1.0, 1.0, 4, 3), annulus(), moebius(8, 3)]
     V = np.concatenate([p[0] + 3.0 * i for i, p in enumerate(parts)])
     offs = np.cumsum([0] + [len(p[0]) for p in parts])
-    F = np.concatenate([p[1] + o for p, o in zip(parts, offs)])
+    F = np.concatenate([p[1] + o for p, o in zip(parts, offs, strict=False)])  # offs ends with the total
     perm = np.random.default_rng(0).permutation(len(V))  # a component is not a block of indices
     inv = np.argsort(perm)
     return V[perm], inv[F]
@@ -668,7 +668,7 @@ def test_high_degree_vertex_is_classified():
     cp = o3dheat.critical_points((V, F), f)
     ref = brute_critical(F, f)
     assert cp.minima.tolist() == sorted(ref["min"]) and cp.maxima.tolist() == sorted(ref["max"])
-    assert dict(zip(cp.saddles.tolist(), cp.saddle_multiplicity.tolist())) == ref["saddle"]
+    assert dict(zip(cp.saddles.tolist(), cp.saddle_multiplicity.tolist(), strict=True)) == ref["saddle"]
     # the apexes see the whole cycle: sin(3θ) alternates six times, a saddle of multiplicity 2
     g = np.concatenate([[0.0, 0.0], np.sin(3 * 2 * np.pi * np.arange(200) / 200)])
     cp = o3dheat.critical_points((V, F), g)
@@ -687,7 +687,7 @@ def _brute_bad_fans(F, n):
             continue
         comp = list(range(len(faces)))
 
-        def root(i):
+        def root(i, comp=comp):  # this vertex's list (bound now: the loop rebinds the name)
             while comp[i] != i:
                 i = comp[i]
             return i

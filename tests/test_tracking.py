@@ -3,9 +3,9 @@
 import numpy as np
 import open3d as o3d
 import pytest
+from conftest import icosphere
 
 import o3dheat
-from conftest import icosphere
 
 
 def _check_invariants(tr, mesh, F):

@@ -23,9 +23,12 @@ def _subcommands(parser):
 
 
 class CliReference(SphinxDirective):
+    """The ``o3dheat-cli`` directive (no arguments, no content): one section per command."""
+
     has_content = False
 
     def run(self):
+        """The sections, parsed from the ``--help`` texts of ``o3dheat`` and of each subcommand."""
         from o3dheat.cli import _parser
 
         old = os.environ.get("COLUMNS")
@@ -51,5 +54,6 @@ class CliReference(SphinxDirective):
 
 
 def setup(app):
+    """Sphinx extension entry point: registers the ``o3dheat-cli`` directive."""
     app.add_directive("o3dheat-cli", CliReference)
     return {"parallel_read_safe": True, "parallel_write_safe": True}
