@@ -2,7 +2,7 @@
 
 ::
 
-    table = o3dheat.batch.run(chain, "scans/*.ply", "out/")     # or chain.map("scans/*.ply", "out/")
+    table = o3dheat.batch.run(chain, "scans/*.ply", "out/")
     o3dheat batch 'scans/*.ply' --out out/ -f scalar:kind=height -f heat_smooth:attribute=height
 
 Inputs are paths or glob patterns (expanded here: quote them in the shell; ``**`` recurses, into
@@ -164,7 +164,7 @@ def _entries(folder):
 
 
 def _visible(name, part):
-    """glob's rule: a name starting with a dot is matched only by a pattern that does."""
+    """``glob``'s rule: a name starting with a dot is matched only by a pattern that does."""
     return not name.startswith(".") or part.startswith(".")
 
 
@@ -368,6 +368,8 @@ def _preflight(chain, paths, out_dir, overwrite, suffix):
         chain = Chain(chain)
     if not len(chain):
         raise MeshError("no filter given: an empty chain")
+    if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir).strip():
+        raise MeshError(f"out_dir must be the output folder (a str or Path), got {out_dir!r}")
     out_dir = Path(out_dir)
     inputs = expand(paths, exclude=out_dir)  # its outputs are not inputs
     if out_dir.exists() and not out_dir.is_dir():
@@ -410,6 +412,8 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
     Parameters
     ----------
     chain : o3dheat.filters.Chain or a list of its steps
+        The filters, applied in order to each file (a list is made a Chain; it is checked before any
+        task runs).
     paths : str, Path or sequence of them
         Files or glob patterns (:func:`expand`).
     out_dir : str or Path
@@ -421,6 +425,7 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
         False: outputs that exist are skipped (resume); True: every output is recomputed, and
         removed when its file fails.
     suffix : {".ply", ".npz"}
+        The outputs' format: PLY (every vertex attribute a property) or numpy ``.npz``.
     binary : bool
         PLY only: binary (default) or ASCII.
     progress : bool, optional
@@ -446,10 +451,10 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
     ...     o3dheat.io.write_mesh(os.path.join(d, f"s{i}.ply"), o3d.t.geometry.TriangleMesh.create_sphere(i, 8))
     >>> chain = o3dheat.filters.Chain([("scalar", {"kind": "height"}),
     ...                                ("heat_smooth", {"attribute": "height", "k": 10, "scales": 2})])
-    >>> table = chain.map(os.path.join(d, "*.ply"), os.path.join(d, "out"), scheduler="sequential")
+    >>> table = o3dheat.batch.run(chain, os.path.join(d, "*.ply"), os.path.join(d, "out"), scheduler="sequential")
     >>> table["status"].tolist(), [os.path.basename(p) for p in table["output"]]
     (['done', 'done'], ['s1.ply', 's2.ply'])
-    >>> chain.map(os.path.join(d, "*.ply"), os.path.join(d, "out"), scheduler="sequential")["status"].tolist()
+    >>> o3dheat.batch.run(chain, os.path.join(d, "*.ply"), os.path.join(d, "out"), scheduler="sequential")["status"].tolist()
     ['skipped', 'skipped']
     """
     import pandas as pd
@@ -461,7 +466,7 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
             raise MeshError(f"{name} must be True or False{' (or None)' if name == 'progress' else ''}, "
                             f"got {value!r}")
     chain, inputs, dsts, record = _preflight(chain, paths, out_dir, overwrite, suffix)
-    rows = [[str(s), str(d), "skipped", 0.0, ""] for s, d in zip(inputs, dsts)]
+    rows = [[str(s), str(d), "skipped", 0.0, ""] for s, d in zip(inputs, dsts, strict=True)]
     todo = [i for i, d in enumerate(dsts) if overwrite or not d.exists()]
     src = [os.path.abspath(p) for p in inputs]  # workers may run elsewhere, in another folder
     dst = [os.path.abspath(p) for p in dsts]

@@ -394,14 +394,14 @@ def describe(name):
 
 
 def plain_text(text):
-    """reStructuredText of a docstring as plain one-line text: ````literal```` and ```x``` lose their
+    r"""The reStructuredText of a docstring as plain one-line text: ````literal```` and ```x``` lose their
     backticks, roles keep their text (``:func:`~a.b` `` -> ``b``, ``:class:`T <a.T>` `` -> ``T``),
     a trailing ``::`` becomes ``:``, and lines are joined.
 
     Examples
     --------
     >>> from o3dheat.filters import plain_text
-    >>> plain_text("Smooth ``f`` with\\n    :func:`~o3dheat.kernel.smooth` (see :class:`HeatKernel <o3dheat.HeatKernel>`)::")
+    >>> plain_text("Smooth ``f`` with\n    :func:`~o3dheat.kernel.smooth` (see :class:`HeatKernel <o3dheat.HeatKernel>`)::")
     'Smooth f with smooth (see HeatKernel):'
     """
     def role(m):
@@ -431,9 +431,12 @@ def one_column(values, name, column=None, option="column="):
     Parameters
     ----------
     values : array_like, (n,) or (n, ...)
+        The attribute, one row per vertex (or point).
     name : str
         The attribute's name (for messages).
     column : int or None
+        The column, 0-based, negative from the end (-1 the last); None: the attribute must have one
+        column.
     option : str
         How the user picks a column, for the message: ``"column="`` (a filter parameter) or
         ``"--column "`` (a command option).
@@ -515,6 +518,7 @@ def attribute_columns(geometry):
     Parameters
     ----------
     geometry : Open3D TriangleMesh or PointCloud (tensor or legacy)
+        The geometry whose vertex (mesh) or point (cloud) attributes are listed; positions included.
 
     Returns
     -------
@@ -573,6 +577,7 @@ def check_writable(name, columns=None, attributes=None):
     Parameters
     ----------
     name : str
+        The output attribute's name.
     columns : int, tuple of int or None
         The output's columns (a ``plan``'s count) or its trailing shape (``values.shape[1:]``);
         None: the name only.
@@ -982,6 +987,7 @@ class Chain:
         Parameters
         ----------
         geometry : Open3D TriangleMesh or PointCloud
+            The chain's input: only its attributes and their column counts are read.
 
         Returns
         -------
@@ -1017,46 +1023,6 @@ class Chain:
                 break
             columns = after
         return columns
-
-    def map(self, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", binary=True, progress=None):
-        """Run the chain on many files, one task per file, resumable: :func:`o3dheat.batch.run`.
-
-        Parameters
-        ----------
-        paths : str, Path or sequence of them
-            Files or glob patterns (``"scans/*.ply"``).
-        out_dir : str or Path
-            Output folder: ``out_dir/<input stem>.ply`` (or ``.npz``) per input. Required (no
-            default folder): anything else is a MeshError.
-        scheduler : None, "sequential", str or distributed.Client
-            None: a local Dask cluster; "sequential": in this process; an address or a Client.
-        overwrite : bool
-            False: outputs that exist are skipped (resume); True: all are recomputed.
-        suffix : {".ply", ".npz"}
-        binary : bool
-        progress : bool, optional
-
-        Returns
-        -------
-        pandas.DataFrame
-            One row per input: ``input``, ``output``, ``status`` ("done", "skipped", "failed"),
-            ``seconds``, ``error``.
-
-        Examples
-        --------
-        >>> import os, tempfile, open3d as o3d, o3dheat
-        >>> d = tempfile.mkdtemp()
-        >>> o3dheat.io.write_mesh(os.path.join(d, "s.ply"), o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
-        >>> chain = o3dheat.filters.Chain([("scalar", {"kind": "height"})])
-        >>> chain.map(os.path.join(d, "*.ply"), os.path.join(d, "out"), scheduler="sequential")["status"].tolist()
-        ['done']
-        """
-        from .batch import run  # batch imports this module
-
-        if not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir).strip():
-            raise MeshError(f"Chain.map: out_dir must be the output folder (a str or Path), got {out_dir!r}")
-        return run(self, paths, out_dir, scheduler=scheduler, overwrite=overwrite, suffix=suffix, binary=binary,
-                   progress=progress)
 
     def to_dict(self):
         """The chain as plain data: ``{"filter": [{"name": ..., parameter: value, ...}, ...]}`` (None

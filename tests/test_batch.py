@@ -65,7 +65,7 @@ def _same_outputs(a, b):
 # --------------------------------------------------------------------------------- sequential
 def test_sequential_table_outputs_and_resume(scans, tmp_path):
     out = tmp_path / "out"
-    t = Chain(STEPS).map(str(scans / "*.ply"), out, scheduler="sequential", progress=False)
+    t = run(Chain(STEPS), str(scans / "*.ply"), out, scheduler="sequential", progress=False)
     assert list(t.columns) == COLUMNS and t["status"].tolist() == ["done"] * 3
     assert t["input"].tolist() == [str(scans / f"m{i}.ply") for i in range(3)]
     assert t["output"].tolist() == [str(out / f"m{i}.ply") for i in range(3)]
@@ -94,7 +94,7 @@ def test_a_bad_file_fails_alone_and_is_retried(scans, tmp_path, capsys):
     _bad(scans)
     out = tmp_path / "out"
     t = run(STEPS, scans / "*.ply", out, scheduler="sequential", progress=False)
-    status = dict(zip((os.path.basename(p) for p in t["input"]), t["status"]))
+    status = dict(zip((os.path.basename(p) for p in t["input"]), t["status"], strict=True))
     assert status == {"cut.ply": "failed", "m0.ply": "done", "m1.ply": "done", "m2.ply": "done", "text.ply": "failed"}
     errors = t.set_index("status").loc["failed", "error"].tolist()
     assert any("truncated" in e for e in errors) and all(str(scans) in e for e in errors)  # the paths as given
@@ -341,7 +341,7 @@ def test_link_loops_end_and_each_file_is_run_once(scans, tmp_path, capsys):
         got = expand(str(scans / "**" / "*.ply"))
     assert [os.path.relpath(p, scans) for p in got] == ["deep/d.ply", "m0.ply", "m1.ply", "m2.ply"]
     with _Deadline(60):
-        t = Chain(STEPS[:1]).map(str(scans / "**" / "*.ply"), tmp_path / "out", scheduler="sequential",
+        t = run(Chain(STEPS[:1]), str(scans / "**" / "*.ply"), tmp_path / "out", scheduler="sequential",
                                  progress=False)
         assert t["status"].tolist() == ["done"] * 4
         assert main(["batch", str(scans / "**" / "*.ply"), "--out", str(tmp_path / "cli"), "--scheduler",
