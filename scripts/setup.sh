@@ -70,7 +70,7 @@ import re
 text = open("pyproject.toml").read()
 block = re.search(r"^dependencies = \[(.*?)^\]", text, re.S | re.M).group(1)
 deps = [d for d in re.findall(r'"([^"]+)"', block) if not d.startswith("scikit-sparse")]
-dev = re.search(r"^dev = \[(.*?)\]", text, re.M).group(1)
+dev = re.search(r"^dev = \[(.*?)\]\s*$", text, re.S | re.M).group(1)
 print(" ".join(deps + re.findall(r'"([^"]+)"', dev)))
 PY
 )
