@@ -27,9 +27,17 @@ The compiled loops (numba) are compiled once and cached beside the module: the f
 reports, in fresh processes, the first call with an empty cache (compiling) and with the cache
 (loading).
 
+**Tracking** (the last table, ``--tracking-size``, 200k vertices by default, 0 skips it): the bunny
+at that size, a noisy height smoothed by ``heat_flow`` at 100 times ``np.geomspace(1e-4, 1, 100)``;
+on one prebuilt Surface, the 100 critical-point sets alone (``critical_points(surface, F[:, i])``)
+against ``track_critical_points(surface, F, t)`` (which computes them too), best of ``--repeat``,
+and the ratio (the target: at most 3x); then the first read of ``Tracks.persistence`` (the
+diagrams the tracking did not need, computed then) and the tracking's peak memory per n T.
+
     .venv/bin/python scripts/bench_topology.py                        # 100k and 1M vertices
     .venv/bin/python scripts/bench_topology.py --sizes 100000 --repeat 3
     .venv/bin/python scripts/bench_topology.py --sizes 10000000 --meshes torus --repeat 1  # slow
+    .venv/bin/python scripts/bench_topology.py --only-tracking                  # the tracking table alone
 
 Needs gudhi (``pip install -e .[dev]`` or ``.[bench]``). Prints Markdown tables.
 """
@@ -136,6 +144,31 @@ def first_call():
     return out
 
 
+def tracking(n, repeat, memory=True):
+    """The tracking table (see the module docstring): one row."""
+    V, F = bunny(n)
+    x, y, z = (V - V.mean(0)).T / np.ptp(V, axis=0).max()
+    f = z + 0.05 * np.random.default_rng(0).standard_normal(len(V))
+    t = np.geomspace(1e-4, 1.0, 100)
+    Ft = o3dheat.heat_flow((V, F), f, t)
+    S = Surface((V, F))
+    o3dheat.track_critical_points(S, Ft[:, :2], t[:2])  # compiled loops loaded, scipy imported
+    t_cp, cps = best_of(lambda: [o3dheat.critical_points(S, Ft[:, i]) for i in range(len(t))], repeat)
+    t_tr, tr = best_of(lambda: o3dheat.track_critical_points(S, Ft, t), repeat)
+    t0 = time.perf_counter()
+    tr.persistence  # noqa: B018 - computed on first read
+    t_p = time.perf_counter() - t0
+    peak = peak_bytes(lambda: o3dheat.track_critical_points(S, Ft, t)) / Ft.size if memory else np.nan
+    kinds = ", ".join(f"{e}: {sum(x['kind'] == e for x in tr.events)}" for e in
+                      ("cancel", "creation", "death", "birth", "split", "merge"))
+    print("| mesh | vertices | scales | critical points (first, last scale) | tracks | events | "
+          "100 critical-point sets s | tracking s | tracking / critical points | first read of "
+          "persistence s | tracking peak B / (n T) |")
+    print("|" + "---|" * 11)
+    print(f"| bunny | {len(V)} | {len(t)} | {cps[0].counts}, {cps[-1].counts} | {len(tr)} | {kinds} | "
+          f"{t_cp:.3f} | {t_tr:.3f} | {t_tr / t_cp:.2f}x | {t_p:.3f} | {peak:.1f} |", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="100000,1000000", help="comma-separated vertex counts (10000000: slow)")
@@ -145,7 +178,12 @@ def main(argv=None):
     ap.add_argument("--gudhi-max", type=int, default=2_000_000, help="skip gudhi above this many vertices")
     ap.add_argument("--no-memory", action="store_true", help="skip the tracemalloc peak measurements")
     ap.add_argument("--no-first-call", action="store_true", help="skip the compile / cache-load table")
+    ap.add_argument("--tracking-size", type=int, default=200_000, help="vertices of the tracking case (0: skip)")
+    ap.add_argument("--only-tracking", action="store_true", help="the tracking table alone")
     args = ap.parse_args(argv)
+    if args.only_tracking:
+        tracking(args.tracking_size, args.repeat, not args.no_memory)
+        return 0
     makers = {"torus": torus, "bunny": bunny}
     if not args.no_first_call:
         (i0, c0), (i1, c1), (i2, c2) = first_call()
@@ -196,6 +234,9 @@ def main(argv=None):
                       f"{t_p:.3f} | {ratios}{extra} |", flush=True)
             S = None
             gc.collect()
+    if args.tracking_size:
+        print()
+        tracking(args.tracking_size, args.repeat, not args.no_memory)
     return 0
 
 

@@ -117,3 +117,104 @@ def test_feature_approx_picks_the_long_lived_critical_points():
         flt.get("feature_approx", attribute="f", lifetime=0.1, delta=0.1)
     with pytest.raises(o3dheat.MeshError, match="lifetime"):
         flt.get("feature_approx", attribute="f", lifetime=-1.0)
+
+
+def _fields_on_closed_surfaces():
+    """Three smooth fields under the heat flow on a fine grid of scales: bumps with noise on a
+    sphere, a noisy height on a torus, a noisy product of waves on a sphere."""
+    rng = np.random.default_rng(7)
+    V, F = icosphere(4)
+    centres = np.array([[1.0, 0, 0], [-0.5, 0.8, 0.3], [-0.4, -0.6, -0.7], [0, 0, 1]])
+    centres /= np.linalg.norm(centres, axis=1)[:, None]
+    bumps = sum(np.exp(-np.sum((V - c) ** 2, axis=1) / (2 * s**2)) for c, s in zip(centres, [0.15, 0.2, 0.3, 0.25],
+                                                                                  strict=True))
+    m = o3d.t.geometry.TriangleMesh.create_torus(radial_resolution=60, tubular_resolution=30)
+    Vt = m.vertex.positions.numpy().astype(float)
+    Ft = m.triangle.indices.numpy().astype(np.int64)
+    waves = np.sin(3 * V[:, 0]) * np.cos(2 * V[:, 1]) + 0.5 * V[:, 2]
+    for (Vm, Fm), f in (((V, F), bumps + 0.05 * rng.standard_normal(len(V))),
+                        ((Vt, Ft), Vt[:, 0] + 0.1 * rng.standard_normal(len(Vt))),
+                        ((V, F), waves + 0.1 * rng.standard_normal(len(V)))):
+        t = np.geomspace(1e-4, 1.0, 60)
+        yield (Vm, Fm), o3dheat.heat_flow((Vm, Fm), f, t), t
+
+
+def test_tracks_agree_with_the_bottleneck_matching_of_consecutive_diagrams():
+    """Issue 24: an independent check of the tracks against gudhi's bottleneck distance.
+
+    Between scales i and i + 1 let ε = ‖F_i − F_{i+1}‖∞ and δ = the bottleneck distance (gudhi)
+    between the diagrams of F_i and F_{i+1}, dimension by dimension.
+
+    (a) Stability (Cohen-Steiner, Edelsbrunner, Harer): δ ≤ ε; on a fine grid of scales both are
+        small against the field's range.
+    (b) The tracks carry the diagrams: at every scale the finite persistences of the extremum
+        tracks are the diagram's persistences (each pair has one extremum).
+    (c) On a closed surface, an extremum track with persistence p > 2ε at scale i (or ∞) goes on
+        to scale i + 1, and its value moves by at most ε: for a maximum v, paired with a saddle of
+        value f_i(v) − p, let C be the component of v in {F_i ≥ f_i(v) − 2ε} (vertex graph, the
+        topology's (value, index) order): v is its highest vertex, since the saddle is below that
+        level. The steepest ascent from v in F_{i+1} climbs through F_{i+1} ≥ F_{i+1}(v) ≥
+        f_i(v) − ε, hence F_i ≥ f_i(v) − 2ε: it stays in C and stops at a maximum w of F_{i+1}
+        (closed: a vertex above its whole link is a maximum), with f_i(v) − ε ≤ F_{i+1}(v) ≤
+        F_{i+1}(w) ≤ F_i(w) + ε ≤ f_i(v) + ε. Another maximum u whose ascent reaches w is joined to
+        v's component above f_i(u) − 2ε and is lower than v (if u ∈ C, by the definition of C; if
+        not, the ascent enters C from a vertex x with f_i(u) − 2ε ≤ F_i(x) < f_i(v) − 2ε), so its
+        persistence is at most 2ε < p: the "most persistent" rule keeps v's track. Minima alike.
+        So no extremum track whose persistence exceeds 2ε ends between i and i + 1 (the bottleneck
+        matching keeps such points off the diagonal as well: 2ε ≥ 2δ).
+
+    Not claimed: that a continuing track's persistence moves by at most 2ε. Two peaks whose
+    heights cross swap their pairing: the diagram moves little (δ ≤ ε) while each track's
+    persistence jumps; the tracks follow the flow, the bottleneck matching follows the values.
+    """
+    import gudhi
+
+    checked = ended_small = 0
+    for mesh, Ft, t in _fields_on_closed_surfaces():
+        S = o3dheat.topology.Surface(mesh)
+        tr = o3dheat.track_critical_points(S, Ft, t)
+        _check_invariants(tr, mesh, Ft)
+        span = np.ptp(Ft[:, 0])
+        dgs = [o3dheat.persistence(S, Ft[:, j]) for j in range(len(t))]
+        ext = tr.kind != "saddle"
+        for j, dg in enumerate(dgs):  # (b)
+            alive = ext & (tr.vertex[:, j] >= 0)
+            p = tr.persistence[alive, j]
+            np.testing.assert_array_equal(np.sort(p[np.isfinite(p)]), np.sort(dg.persistence))
+            assert np.sum(~np.isfinite(p)) == np.sum(dg.essential_dimension != 1)
+        for i in range(len(t) - 1):
+            eps = np.abs(Ft[:, i] - Ft[:, i + 1]).max()
+            for dim in (0, 1):  # (a)
+                delta = gudhi.bottleneck_distance(dgs[i].intervals(dim), dgs[i + 1].intervals(dim))
+                assert delta <= eps + 1e-12
+            assert eps < 0.1 * span
+            here = np.flatnonzero(ext & (tr.vertex[:, i] >= 0))
+            p = tr.persistence[here, i]
+            big, small = here[p > 2 * eps], here[p <= 2 * eps]
+            assert np.all(tr.vertex[big, i + 1] >= 0), "a persistent extremum's track ended"  # (c)
+            moved = np.abs(Ft[tr.vertex[big, i + 1], i + 1] - Ft[tr.vertex[big, i], i])
+            assert np.all(moved <= eps + 1e-12)
+            checked += len(big)
+            ended_small += int(np.sum(tr.vertex[small, i + 1] < 0))
+    assert checked > 1000 and ended_small > 20  # neither side of the bound is vacuous
+
+
+def test_persistence_is_computed_on_first_read_and_pickled():
+    import pickle
+
+    V, F = icosphere(3)
+    f = V[:, 2] + 0.3 * np.random.default_rng(0).standard_normal(len(V))
+    t = np.geomspace(1e-3, 1.0, 8)
+    Ft = o3dheat.heat_flow((V, F), f, t)
+    tr = o3dheat.track_critical_points((V, F), Ft, t)
+    back = pickle.loads(pickle.dumps(tr))  # carries the persistence, not the fields
+    for j in range(len(t)):
+        dg = o3dheat.persistence((V, F), Ft[:, j])
+        alive = tr.vertex[:, j] >= 0
+        for track in np.flatnonzero(alive):
+            v = tr.vertex[track, j]
+            q = dg.persistence[(dg.pairs == v).any(axis=1)]
+            assert tr.persistence[track, j] == (q.max() if len(q) else np.inf)
+        assert np.all(np.isnan(tr.persistence[~alive, j]))
+    np.testing.assert_array_equal(back.persistence, tr.persistence)
+    assert back._source is None and back.events == tr.events
