@@ -12,9 +12,16 @@ default), each the heat kernel of its own eigenproblem ``L x = λ W x``, ``K_t =
 Descriptors (:data:`DESCRIPTORS`): "hks_<form>" for each HKS form of
 :data:`o3dheat.kernel.HKS_FORMS` ("hks_density", "hks_paper"), "smooth_height" (``Φ_t`` of the
 height along the reference's longest axis), "smooth_curvature" (``Φ_t`` of the FEM mean
-curvature), "eigenvalues" (λ_2..λ_k of the kernel's own eigenproblem, one row with scale 0) and
+curvature), "eigenvalues" (λ_2..λ_k of the kernel's own eigenproblem, one row with scale 0),
 "critical_points" (the number of critical points of the smoothed height; both metrics are
-``|c − c_ref| / c_ref``).
+``|c − c_ref| / c_ref``) and "track_lifetime" (do the extrema of the smoothed height live as long?
+:func:`o3dheat.track_critical_points` over the kernel's times on each sampling; at scale j, the 10
+extremum tracks of the reference alive at j that live longest (ties: the more persistent at j)
+are each matched to the nearest track of the same kind alive at j on the resampling, within 5% of
+the reference's bounding-box diagonal; with ``L = t_last / t_j`` the factor of time a track lives
+on from j (its last scale capped at the grid's end), the error of a track is
+``|log L − log L_ref| / log(t_T / t_j)`` (0 at the last scale), 1 when nothing matched; rel_l2 is
+the root mean square of the errors, rel_linf their largest).
 
 Times: each kernel's scales are computed once, from its own spectrum on the reference sampling
 (the paper's grid ``t_i = (i/10)/λ_k`` by default, or the log grid), and applied unchanged to
@@ -52,7 +59,7 @@ log = logging.getLogger("o3dheat")
 
 #: what a study measures: one HKS per form of :data:`o3dheat.kernel.HKS_FORMS`, then the others
 DESCRIPTORS = tuple(f"hks_{form}" for form in kernel.HKS_FORMS) + (
-    "smooth_height", "smooth_curvature", "eigenvalues", "critical_points")
+    "smooth_height", "smooth_curvature", "eigenvalues", "critical_points", "track_lifetime")
 COLUMNS = ["mesh", "resampling", "kind", "kernel", "descriptor", "scale", "t", "rel_l2", "rel_linf",
            "vertices", "error"]
 
@@ -70,14 +77,16 @@ def _descriptors(V, F, kernels, descriptors, k, times, axis, grid="paper", scale
     from .heatflow import HeatFlow
     from .kernel import heat_kernel
     from .topology import Surface, critical_points
+    from .tracking import track_critical_points
 
     V, F = _aligned(V), _aligned(F)
     k = min(k, len(V) - 2)
     height = _aligned(V[:, axis])
     curvature = _aligned(fem.mean_curvature(V, F)) if "smooth_curvature" in descriptors else None
-    surface = Surface.from_faces(len(V), F) if "critical_points" in descriptors else None
+    topo = {"critical_points", "track_lifetime"} & set(descriptors)
+    surface = Surface.from_faces(len(V), F, V) if topo else None
     out, used = {}, {}
-    smooth_only = {"smooth_height", "smooth_curvature", "critical_points"}
+    smooth_only = {"smooth_height", "smooth_curvature", "critical_points", "track_lifetime"}
     for kern in kernels:
         spectral = method == "spectral" or times is None or not set(descriptors) <= smooth_only
         K = heat_kernel((V, F), k=k, variant=kern) if spectral else None
@@ -97,7 +106,36 @@ def _descriptors(V, F, kernels, descriptors, k, times, axis, grid="paper", scale
                 H = out[kern, "smooth_height"] if (kern, "smooth_height") in out else S.smooth(height, t)
                 out[kern, d] = np.array([sum(critical_points(surface, H[:, i]).counts)
                                          for i in range(len(t))], dtype=np.float64)
+            elif d == "track_lifetime":
+                H = out[kern, "smooth_height"] if (kern, "smooth_height") in out else S.smooth(height, t)
+                out[kern, d] = track_critical_points(surface, H, t)
     return out, used
+
+
+def _lifetime_errors(tracks, ref, extent, top=10):
+    """(root mean square, largest) per scale of the "track_lifetime" errors (module docstring) of
+    the tracks of a resampling against the reference's."""
+    t = ref.times
+    radius = 0.05 * float(np.linalg.norm(extent))
+    l2, inf = np.zeros(len(t)), np.zeros(len(t))
+    for j in range(len(t)):
+        span = np.log(t[-1] / t[j])
+        alive = np.flatnonzero((ref.vertex[:, j] >= 0) & (ref.kind != "saddle"))
+        alive = alive[np.lexsort((ref.vertex[alive, j], -ref.persistence[alive, j], -ref.last[alive]))][:top]
+        mine = np.flatnonzero(tracks.vertex[:, j] >= 0)
+        err = []
+        for a in alive:
+            same = mine[tracks.kind[mine] == ref.kind[a]]
+            d = np.linalg.norm(tracks.positions_of[tracks.vertex[same, j]] - ref.positions_of[ref.vertex[a, j]], axis=1)
+            if not len(d) or d.min() > radius:
+                err.append(1.0)
+            elif span > 0:
+                err.append(abs(np.log(t[tracks.last[same[np.argmin(d)]]] / t[ref.last[a]])) / span)
+            else:
+                err.append(0.0)
+        if err:
+            l2[j], inf[j] = np.sqrt(np.mean(np.square(err))), np.max(err)
+    return l2, inf
 
 
 def _aligned(a):
@@ -181,6 +219,9 @@ def _task(mesh_name, res_name, spec, ref, cfg):
                     scales, ts = [0], [float("nan")]
                 elif d == "critical_points":
                     l2 = inf = np.abs(value - base) / np.maximum(base, 1.0)
+                    scales, ts = range(1, len(ref["times"][kern]) + 1), ref["times"][kern]
+                elif d == "track_lifetime":
+                    l2, inf = _lifetime_errors(value, base, np.ptp(ref["V"], axis=0))
                     scales, ts = range(1, len(ref["times"][kern]) + 1), ref["times"][kern]
                 else:
                     back = transfer(value, r, ref["V"])
