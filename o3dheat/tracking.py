@@ -49,7 +49,7 @@ from .topology import Surface, critical_points, persistence
 
 __all__ = ["Tracks", "track_critical_points", "KINDS"]
 
-#: track kinds, in the order of their codes in :attr:`Tracks.kind_code`
+#: the track kinds
 KINDS = ("minimum", "saddle", "maximum")
 
 
