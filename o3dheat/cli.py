@@ -431,7 +431,7 @@ def _figure(args):
     _output_folder(out, "-o")
     try:
         index = paper_figures(mesh, args.out, field=field, k=args.k, noise=args.noise, seed=args.seed,
-                              name=Path(args.input).stem, up=args.up)
+                              name=Path(args.input).stem, up=args.up, tracks=True)
     except BaseException:
         if created and out.is_dir() and not any(out.iterdir()):
             out.rmdir()  # no empty folder left behind by a failed run

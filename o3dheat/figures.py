@@ -12,7 +12,7 @@ from .errors import MeshError
 from .io import atomic_write, atomic_write_text
 from .mesh import as_arrays, check_mesh
 
-__all__ = ["paper_figures", "study_figures"]
+__all__ = ["paper_figures", "track_figures", "study_figures"]
 
 
 def _panels(up, *args, **kwargs):
@@ -23,7 +23,8 @@ def _save(fig, path):
     atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=100))
 
 
-def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", max_faces=30000, up="z"):
+def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", max_faces=30000, up="z",
+                  tracks=False):
     """The kinds of the paper's Figs. 1–7 for one mesh, as PNGs with an ``index.md``; Fig. 1 also
     with the full heat kernel (:class:`o3dheat.HeatFlow`), whose hierarchy the truncation hides.
 
@@ -47,6 +48,9 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
         of every panel dominate the time).
     up : {"z", "y", "x"}
         The axis drawn vertical.
+    tracks : bool
+        Also the critical points' tracks across scales and their lifetimes (two more PNGs, as
+        :func:`track_figures` makes them; the ``o3dheat figure`` command draws them).
 
     Returns
     -------
@@ -72,34 +76,12 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     from .diffusion import diffuse
     from .heatflow import HeatFlow
     from .kernel import HeatKernel, heat_kernel
-    from .mesh import prepare
     from .sampling import decimate, transfer
     from .spectrum import eigensolve
-    from .topology import Surface, critical_points, persistence, simplify_critical_points
+    from .topology import Surface, persistence, simplify_critical_points
 
     out = Path(out)
-    if up not in ("x", "y", "z"):
-        raise MeshError(f"up must be 'x', 'y' or 'z', got {up!r}")
-    V0, F0 = as_arrays(mesh)
-    if field is None:
-        axis = int(np.argmax(np.ptp(V0, axis=0)))
-        h = V0[:, axis]
-        f0 = h + noise * np.ptp(h) * np.random.default_rng(seed).standard_normal(len(V0))
-    else:
-        f0 = checks.field(field, len(V0), "the field")
-        if f0.ndim != 1:
-            raise MeshError(f"the field must have one value per vertex, shape ({len(V0)},), got {f0.shape}: "
-                            "pick a column")
-    report = check_mesh((V0, F0))
-    if report.non_manifold_edges or report.non_manifold_vertices:  # as plot draws them: repaired, said
-        V0, F0, f0 = plot._repaired(V0, F0, f0, f"{report.non_manifold_edges} non-manifold edges and "
-                                    f"{report.non_manifold_vertices} non-manifold vertices", "the figures are made")
-    out.mkdir(parents=True, exist_ok=True)
-    prep = prepare((V0, F0))
-    V, F, f = prep.V, prep.F, prep.restrict(f0)
-    if len(F) > max_faces:
-        Vd, Fd = decimate((V, F), target_faces=max_faces).arrays
-        f, V, F = transfer(f, (V, F), Vd), Vd, Fd
+    V, F, f = _prepared(mesh, field, noise, seed, max_faces, up, out)
     k = min(k, len(V) - 2)
     K = HeatKernel(eigensolve((V, F), k=k))
     K10 = HeatKernel(eigensolve((V, F), k=min(10, k)))
@@ -199,13 +181,171 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
           out / "fig6_7_feature.png")
     entries.append(("fig6_7_feature.png", "the global component Φ_t(pr_A f) with A all the critical points of f "
                     f"and A the most persistent ones (10% of the pairs, {pct:.0f}% of the points)"))
+    if tracks:
+        entries += _track_entries(V, F, f, out, name, up, t_max=K.scales(2, grid="log")[-1])
+    return _index(out, name, f"{len(V)} vertices, {len(F)} faces; k = {k}", field, noise, seed, entries)
+
+
+def _index(out, name, about, field, noise, seed, entries):
     lines = [f"# o3dheat figures: {name}", "",
-             f"{len(V)} vertices, {len(F)} faces; k = {k}; field: "
-             + ("given attribute" if field is not None else f"height + {noise:g} noise (seed {seed})"), ""]
+             f"{about}; field: " + ("given attribute" if field is not None else f"height + {noise:g} noise (seed {seed})"),
+             ""]
     lines += [f"- `{fn}`: {text}" for fn, text in entries]
     index = out / "index.md"
     atomic_write_text(index, "\n".join(lines) + "\n")
     return index
+
+
+def _prepared(mesh, field, noise, seed, max_faces, up, out):
+    """``(V, F, f)``: the mesh and field the figures are made of (the default field: the height
+    along the longest axis plus noise), repaired (said), prepared, decimated to ``max_faces``;
+    ``out`` created."""
+    from .mesh import prepare
+    from .sampling import decimate, transfer
+
+    if up not in ("x", "y", "z"):
+        raise MeshError(f"up must be 'x', 'y' or 'z', got {up!r}")
+    V0, F0 = as_arrays(mesh)
+    if field is None:
+        axis = int(np.argmax(np.ptp(V0, axis=0)))
+        h = V0[:, axis]
+        f0 = h + noise * np.ptp(h) * np.random.default_rng(seed).standard_normal(len(V0))
+    else:
+        f0 = checks.field(field, len(V0), "the field")
+        if f0.ndim != 1:
+            raise MeshError(f"the field must have one value per vertex, shape ({len(V0)},), got {f0.shape}: "
+                            "pick a column")
+    report = check_mesh((V0, F0))
+    if report.non_manifold_edges or report.non_manifold_vertices:  # as plot draws them: repaired, said
+        V0, F0, f0 = plot._repaired(V0, F0, f0, f"{report.non_manifold_edges} non-manifold edges and "
+                                    f"{report.non_manifold_vertices} non-manifold vertices", "the figures are made")
+    out.mkdir(parents=True, exist_ok=True)
+    prep = prepare((V0, F0))
+    V, F, f = prep.V, prep.F, prep.restrict(f0)
+    if len(F) > max_faces:
+        Vd, Fd = decimate((V, F), target_faces=max_faces).arrays
+        f, V, F = transfer(f, (V, F), Vd), Vd, Fd
+    return V, F, f
+
+
+#: Scales of the tracks' figures, and how many of the longest-lived tracks the surface shows.
+TRACK_SCALES = 40
+TRACK_LONGEST = 60
+
+
+def _track_times(V, F, count, t_max=None):
+    """``t = 0`` (the field itself) and ``count - 1`` log-spaced times from the squared mean edge
+    length (smoothing over about an edge) to ``2 ln(100) / λ_2`` (Φ_t f nearly constant)."""
+    from .kernel import HeatKernel
+    from .spectrum import eigensolve
+
+    if t_max is None:
+        parts = int(plot._parts(len(V), F).max()) + 1
+        t_max = HeatKernel(eigensolve((V, F), k=min(parts + 3, len(V) - 2))).scales(2, grid="log")[-1]
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    t_min = float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean()) ** 2
+    if not t_min < t_max / 100:
+        t_min = t_max / 1000
+    return np.r_[0.0, np.geomspace(t_min, t_max, count - 1)]
+
+
+def _track_entries(V, F, f, out, name, up, t_max=None, count=TRACK_SCALES, longest=TRACK_LONGEST):
+    """Draw the tracks' two figures of ``f``'s heat flow into ``out``; their index entries."""
+    from .heatflow import heat_flow
+    from .tracking import track_critical_points
+
+    t = _track_times(V, F, count, t_max)
+    Ft = heat_flow((V, F), f, t)
+    parts = plot._parts(len(V), F)
+    # a part where Φ_t f is constant to rounding (a small one, at late scales): its mean there, as the
+    # drawings take it; the tracks born on it then (critical points of the vertices' order) are left out
+    flat = np.stack([plot._flat_parts(Ft[:, j], parts) for j in range(len(t))], 1)  # (parts, T)
+    for j in range(len(t)):
+        Ft[:, j] = plot._flattened(Ft[:, j], parts, flat[:, j])
+    tr = track_critical_points((V, F), Ft, t)
+    born_flat = flat[parts[tr.vertex[np.arange(len(tr)), tr.first]], tr.first]
+    tr = _tracks_subset(tr, ~born_flat)
+    flat = int(flat.any(axis=1).sum())
+    n_scales = tr.last - tr.first + 1
+    alive = int((tr.last == len(t) - 1).sum())
+    drawn = min(longest, len(tr))
+    _save(plot.tracks((V, F), tr, Ft, longest=longest, up=up, label="f",
+                      title=f"{name}: critical points of the heat flow Φ_t f across {len(t)} scales"),
+          out / "tracks_paths.png")
+    _save(plot.lifetime_chart(tr, title=f"{name}: lifetimes of the {len(tr):,} tracks of critical points"),
+          out / "tracks_lifetimes.png")
+    grid = f"t = 0 and {len(t) - 1} log-spaced times {t[1]:.3g} .. {t[-1]:.3g}"
+    return [("tracks_paths.png", f"the critical points of Φ_t f (exact heat flow, o3dheat.heat_flow; {grid}) "
+             f"followed across the scales (o3dheat.track_critical_points), the {drawn} longest-lived of "
+             f"{len(tr):,} tracks drawn on f: a line through each track's positions (blue minima, green saddles, "
+             "red maxima) and a dot where it ends"),
+            ("tracks_lifetimes.png", f"one bar per track ({len(tr):,}) from the scale it starts at to the scale it "
+             f"ends at, the longest-lived at the top; {int((n_scales == 1).sum()):,} live at one scale only, "
+             f"{alive} live on past the last scale (▶); t = 0 is drawn one grid step left of t = {t[1]:.3g} "
+             "on the log axis" + (f"; {int(born_flat.sum()):,} tracks born on the {flat} part(s) where Φ_t f "
+                                  "becomes constant to rounding (it varies there by at most "
+                                  f"{plot.FLAT_RTOL:g} of its largest magnitude, and is taken as constant "
+                                  "there) are left out: critical points of the vertices' order, not of the field"
+                                  if born_flat.any() else ""))]
+
+
+def _tracks_subset(tr, keep):
+    """The tracks ``keep`` (a mask) of ``tr`` (fresh from the tracking: their persistence is still to
+    be computed, from the subset's vertices), the events among them renumbered."""
+    import dataclasses
+
+    keep = np.asarray(keep, bool)
+    if keep.all():
+        return tr
+    new = np.cumsum(keep) - 1
+    events = [dict(e, tracks=[int(new[i]) for i in e["tracks"]]) for e in tr.events if keep[list(e["tracks"])].all()]
+    return dataclasses.replace(tr, kind=tr.kind[keep], vertex=tr.vertex[keep], multiplicity=tr.multiplicity[keep],
+                               events=events)
+
+
+def track_figures(mesh, out, field=None, noise=0.1, seed=0, name="mesh", max_faces=30000, up="z",
+                  count=TRACK_SCALES, longest=TRACK_LONGEST):
+    """The critical points of a field's heat flow followed across scales: the tracks on the
+    surface (:func:`o3dheat.plot.tracks`, ``tracks_paths.png``) and their lifetimes
+    (:func:`o3dheat.plot.lifetime_chart`, ``tracks_lifetimes.png``), with an ``index.md``.
+
+    The field (as for :func:`paper_figures`) is smoothed by the exact heat flow
+    (:func:`o3dheat.heat_flow`) at ``t = 0`` and ``count - 1`` log-spaced times from the squared
+    mean edge length to ``2 ln(100) / λ_2`` (Φ_t f nearly constant), and its critical points
+    tracked (:func:`o3dheat.track_critical_points`).
+
+    Parameters
+    ----------
+    mesh, out, field, noise, seed, name, max_faces, up
+        As for :func:`paper_figures`.
+    count : int
+        Number of scales (at least 3).
+    longest : int
+        How many of the longest-lived tracks the surface shows (the chart has every track).
+
+    Returns
+    -------
+    pathlib.Path
+        The ``index.md`` written in ``out``.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib, open3d as o3d, o3dheat.figures as figures
+    >>> out = pathlib.Path(tempfile.mkdtemp())
+    >>> index = figures.track_figures(o3d.t.geometry.TriangleMesh.create_torus(), out, count=12)
+    >>> sorted(p.name for p in out.glob("*.png"))
+    ['tracks_lifetimes.png', 'tracks_paths.png']
+    """
+    from pathlib import Path
+
+    count = checks.count(count, "count", maximum=1000)
+    if count < 3:
+        raise MeshError(f"count must be at least 3 scales, got {count}")
+    longest = checks.count(longest, "longest")
+    out = Path(out)
+    V, F, f = _prepared(mesh, field, noise, seed, max_faces, up, out)
+    entries = _track_entries(V, F, f, out, name, up, count=count, longest=longest)
+    return _index(out, name, f"{len(V)} vertices, {len(F)} faces", field, noise, seed, entries)
 
 
 def study_figures(table, out):

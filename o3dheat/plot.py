@@ -36,7 +36,7 @@ from .fem import _vertex_normals
 from .mesh import as_arrays
 
 __all__ = ["field", "fields", "render", "renderer_available", "scale_space", "study", "drawn_critical_points",
-           "persistence_diagram", "CRITICAL_COLORS"]
+           "persistence_diagram", "tracks", "lifetime_chart", "CRITICAL_COLORS"]
 
 #: Colours of the critical points (the paper's).
 CRITICAL_COLORS = {"maxima": "red", "minima": "blue", "saddles": "green"}
@@ -296,6 +296,26 @@ def _tmesh(V, F, rgb):
     return m
 
 
+def _tubes(P, radius, rgb, view, sides=6):
+    """One tube mesh for segments ``P`` (m, 2, 3), each of its colour ``rgb`` (m, 3), shaded."""
+    d = P[:, 1] - P[:, 0]
+    d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+    e = np.eye(3)[np.argmin(np.abs(d), axis=1)]  # the axis least along d
+    u = np.cross(d, e)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    w = np.cross(d, u)
+    a = 2 * np.pi * np.arange(sides) / sides
+    ring = np.cos(a)[None, :, None] * u[:, None] + np.sin(a)[None, :, None] * w[:, None]  # (m, sides, 3)
+    Vt = np.concatenate([P[:, :1] + radius * ring, P[:, 1:] + radius * ring], axis=1)  # (m, 2 sides, 3)
+    j = np.arange(sides)
+    k = (j + 1) % sides
+    quad = np.r_[np.c_[j, k, sides + j], np.c_[k, sides + k, sides + j]]  # (2 sides, 3)
+    T = (quad[None] + 2 * sides * np.arange(len(P))[:, None, None]).reshape(-1, 3)
+    normals = np.concatenate([ring, ring], axis=1).reshape(-1, 3)
+    colors = np.repeat(rgb, 2 * sides, axis=0) * _shade(normals, view)[:, None]
+    return _tmesh(Vt.reshape(-1, 3), T, colors)
+
+
 # ------------------------------------------------------------------ parts, and fields flat on a part
 def _parts(n, F):
     """(n,) int64: the connected part of each vertex, numbered from 0 (-1: in no face)."""
@@ -440,7 +460,8 @@ class _Panel:
         from matplotlib import colormaps
 
         s = np.clip((values - self.lo) / (self.hi - self.lo), 0, 1) if self.hi > self.lo else np.full(len(values), 0.5)
-        return colormaps[self.cmap](s)[:, :3]
+        cmap = colormaps[self.cmap] if isinstance(self.cmap, str) else self.cmap
+        return cmap(s)[:, :3]
 
     def marker_radii(self, view, point_size=1.0, pixel=None):
         """(p,) radius of the critical points' markers on each part (0: none drawn there).
@@ -462,11 +483,13 @@ class _Panel:
         pixel = 2 * view.half / RENDER_SIZE if pixel is None else pixel
         return np.where(r >= 1.2 * pixel, r, 0.0)
 
-    def render(self, renderer, view, normals, line_width=None, point_size=1.0, pixel=None):
+    def render(self, renderer, view, normals, line_width=None, point_size=1.0, pixel=None, paths=None):
         """(h, w, 3) uint8 image of the surface, its level sets and critical points;
         ``line_width`` in pixels of the render (default: a third of a percent of its size);
         ``pixel``: the size of a pixel of the final picture in world units (markers smaller than
-        about one are not drawn, see :meth:`marker_radii`)."""
+        about one are not drawn, see :meth:`marker_radii`); ``paths``: more segments to draw
+        just off the surface, ``((m, 2, 3) positions, (m, 3) colours)`` (the tracks of
+        :func:`tracks`)."""
         import open3d as o3d
 
         V, F = self.V, self.F
@@ -488,6 +511,14 @@ class _Panel:
                 lines.point.positions = o3d.core.Tensor(P.astype(np.float32))
                 lines.line.indices = o3d.core.Tensor(np.arange(len(P), dtype=np.int32).reshape(-1, 2))
                 lines.line.colors = o3d.core.Tensor(np.zeros((len(P) // 2, 3), np.float32))
+        if paths is not None and len(paths[0]):  # tubes: Filament draws lines one pixel wide, whatever the width
+            from scipy.spatial import cKDTree
+
+            P = np.asarray(paths[0], dtype=np.float64).reshape(-1, 3) - view.target
+            _, near = cKDTree(V).query(P)
+            P = (P + 2 * eps * toward[near]).reshape(-1, 2, 3)
+            radius = 1.5 * (2 * view.half / RENDER_SIZE if pixel is None else pixel)  # about 3 pixels wide
+            meshes.append(_tubes(P, radius, np.asarray(paths[1], dtype=np.float64).reshape(-1, 3), view))
         self.too_dense = 0
         if self.draw_critical:
             from matplotlib.colors import to_rgb
@@ -1195,4 +1226,331 @@ def study(table, descriptor="hks_density", metric="rel_l2", title=None):
                    frameon=False)
     axes[0].set_ylabel(f"{metric} of {descriptor}")
     fig.suptitle(title or f"{descriptor}: discrepancy to the reference sampling", fontsize=11)
+    return fig
+
+
+# ------------------------------------------------------------------ critical points across scales
+#: A track's move between two scales longer than this fraction of the mesh's diagonal is not drawn
+#: (an extremum that flows far, a saddle matched far away): a straight line would cut across the surface.
+JUMP = 0.05
+#: The colour of a track of each kind (:data:`o3dheat.tracking.KINDS`): the critical points' colours.
+_KIND_COLORS = {"minimum": CRITICAL_COLORS["minima"], "saddle": CRITICAL_COLORS["saddles"],
+                "maximum": CRITICAL_COLORS["maxima"]}
+_PLURAL = {"minimum": "minima", "saddle": "saddles", "maximum": "maxima"}
+
+
+def _check_tracks(tr):
+    from .tracking import Tracks
+
+    if not isinstance(tr, Tracks):
+        raise MeshError(f"expected Tracks (from o3dheat.track_critical_points), got {type(tr).__name__}")
+    return tr
+
+
+def _by_lifetime(tr):
+    """Track indices, the longest-lived first: lifetime (living at the last scale: longest), then
+    the number of scales lived at, then the earlier start, then the index."""
+    first, last = tr.first, tr.last
+    return np.lexsort((np.arange(len(tr)), first, -(last - first), -tr.lifetime))
+
+
+def _washed(cmap):
+    """The colormap mixed halfway with white: the surface under the tracks, which keep the pure
+    critical-point colours (a saturated colormap's red and blue ends would hide them)."""
+    from matplotlib import colormaps
+    from matplotlib.colors import ListedColormap
+
+    base = colormaps[cmap](np.linspace(0.0, 1.0, 256))[:, :3]
+    return ListedColormap(0.45 + 0.55 * base, name=f"{cmap}_washed")
+
+
+def tracks(mesh, tracks, f=None, longest=None, view=(20.0, -60.0), cmap="Greys", title=None, size=6.0,
+           up="z", label="f", renderer="auto"):
+    """The critical points' tracks across scales on the surface (:func:`o3dheat.track_critical_points`).
+
+    One polyline per track through its positions at the scales it lives at (minima blue, saddles
+    green, maxima red: :data:`CRITICAL_COLORS`), and a marker where it ends (for a track alive at
+    the last scale: its position there). The surface is drawn as by :func:`field` (the same
+    renderer, hidden surfaces removed: a track behind the surface does not show), coloured by
+    ``f`` at the first scale (default in greys, so that no colour of the surface is a track's)
+    in a colormap washed halfway to white so that the tracks stand out, or plain grey without
+    ``f``. A move between two scales longer than ``JUMP`` of the mesh's diagonal (and than 2.5
+    mean edge lengths) is left out of the line (the panel counts them): a straight line would cut across the surface. Markers are sized per part as the critical points' are
+    (``MARKER_COVER``); above ``MAX_CRITICAL_POINTS`` ends none are drawn (the panel says so).
+
+    Parameters
+    ----------
+    mesh : mesh or (V, F)
+        The mesh the tracks were made on (same vertices).
+    tracks : Tracks
+        With vertex positions (as :func:`o3dheat.track_critical_points` makes them).
+    f : (n,) or (n, T) array_like, optional
+        The field; of (n, T) (one column per scale, as given to the tracking) the first column.
+    longest : int, optional
+        Draw only this many tracks, the longest-lived (alive at the last scale first, then by
+        lifetime and the number of scales lived at): a noisy field has thousands that live at
+        one or two scales. Default: all.
+    view, cmap, title, size, up, label, renderer
+        As for :func:`field`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Its first axes holds the picture (then the colorbar, with ``f``); a legend counts the
+        tracks drawn of each kind.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat, o3dheat.plot as plot
+    >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+    >>> x = m.vertex.positions.numpy()[:, 0]
+    >>> t = [0.0, 0.1, 0.2]
+    >>> tr = o3dheat.track_critical_points(m, np.c_[x, 2 * x, 3 * x], t)
+    >>> fig = plot.tracks(m, tr, x, title="x on a torus")
+    >>> [t.get_text() for t in fig.legends[0].get_texts()][:3]
+    ['minima (1 track)', 'saddles (2 tracks)', 'maxima (1 track)']
+    """
+    import textwrap
+    from types import SimpleNamespace
+
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from scipy.spatial import cKDTree
+
+    tr = _check_tracks(tracks)
+    V, F = as_arrays(mesh)
+    if tr.positions_of is None or len(tr.positions_of) != len(V):
+        raise MeshError(f"the tracks are not of this mesh ({len(V)} vertices): pass the mesh given to "
+                        "o3dheat.track_critical_points")
+    _check_style(cmap, size)
+    if longest is not None:
+        longest = checks.count(longest, "longest")
+    if f is None:
+        g = np.zeros(len(V))
+    else:
+        G = np.asarray(checks.values(f), dtype=np.float64)
+        g = _field_values(G[:, 0] if G.ndim == 2 else G, len(V))
+    V = _upright(V, up)
+    P = tr.positions[..., _UP[up]] if len(tr) else np.zeros((0, len(tr.times), 3))
+    order = _by_lifetime(tr)
+    chosen = order if longest is None else order[:longest]
+    V, F, g = _welded(V, F, g)
+    F = _oriented(V, F)
+    frame = _View(V, view)
+    r = _renderer(renderer)
+    parts = _parts(len(V), F)
+    if f is None:
+        lo, hi, colormap = -0.6, 1.4, "Greys"  # g = 0: a light grey
+    else:
+        flat = _flat_parts(g, parts)[np.maximum(parts, 0)] & (parts >= 0)
+        lo, hi = _range(g, flat)
+        colormap = _washed(cmap)
+    # the paths: consecutive living positions that differ; the ends: a vertex each (exact positions)
+    kinds = np.asarray(tr.kind)[chosen]
+    segs, cols = [], []
+    from matplotlib.colors import to_rgb
+
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]])
+    edge = float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean()) if len(E) else 0.0
+    jump = max(JUMP * frame.diagonal, 2.5 * edge)  # a move along an edge or two lies on the surface
+    jumps = 0
+    for i, kind in zip(chosen, kinds, strict=True):
+        Q = P[i, tr.first[i]:tr.last[i] + 1]
+        length = np.linalg.norm(Q[1:] - Q[:-1], axis=1)
+        jumps += int((length > jump).sum())
+        step = (length > 0) & (length <= jump)
+        if step.any():
+            segs.append(np.stack([Q[:-1][step], Q[1:][step]], 1))
+            cols.append(np.tile(to_rgb(_KIND_COLORS[kind]), (int(step.sum()), 1)))
+    segments = np.concatenate(segs) if segs else np.zeros((0, 2, 3))
+    colors = np.concatenate(cols) if cols else np.zeros((0, 3))
+    ends = P[chosen, tr.last[chosen]] if len(chosen) else np.zeros((0, 3))
+    end_vertex = cKDTree(V).query(ends)[1] if len(ends) else np.zeros(0, np.int64)
+    counts = {k: int((kinds == k).sum()) for k in _KIND_COLORS}
+    cp = SimpleNamespace(**{_PLURAL[k]: end_vertex[kinds == k] for k in _KIND_COLORS},
+                         counts=(counts["minimum"], counts["saddle"], counts["maximum"]))
+    panel = _Panel(V, F, g, lo, hi, colormap, None, cp, None, None, parts)
+    aspect = float(np.clip(np.ptp(frame.u) / np.ptp(frame.v), 0.25, 4.0))
+    w = size * min(1.0, aspect) if aspect < 1 else size
+    h = w / aspect
+    fig = Figure(figsize=(w + (1.1 if f is not None else 0.2), h + 0.9 + (0.35 if title else 0.0)), dpi=100,
+                 layout="constrained")
+    fig.get_layout_engine().set(w_pad=0.04, h_pad=0.04)
+    normals = _vertex_normals(V, F)
+    if r is not None:
+        ax = fig.add_subplot(1, 1, 1)
+        shrink = r.size * np.ptp(frame.u) / (2 * frame.half) / (w * 100)
+        ax.imshow(panel.render(r, frame, normals, line_width=1.6 * shrink, pixel=np.ptp(frame.u) / (w * 100),
+                               paths=(segments, colors)), interpolation="antialiased")
+        ax.set_axis_off()
+    else:
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+        ax = fig.add_subplot(1, 1, 1, projection="3d")
+        panel.draw_matplotlib(ax, view, frame)
+        if len(segments):
+            _, near = cKDTree(V).query(segments.mean(axis=1))
+            facing = normals[near] @ frame.d >= 0
+            ax.add_collection3d(Line3DCollection(segments[facing], colors=colors[facing], linewidths=1.6,
+                                                 zorder=2))
+    if title:
+        ax.set_title(title, fontsize=10)
+    notes = []
+    if longest is not None and len(chosen) < len(tr):
+        notes.append(f"the {len(chosen):,} longest-lived of {len(tr):,} tracks")
+    if jumps:
+        notes.append(f"{jumps:,} move{'s' if jumps > 1 else ''} between two scales longer than "
+                     f"{100 * jump / frame.diagonal:.2g}% of the mesh's size not drawn (a line across would not "
+                     "lie on the surface)")
+    if panel.critical and not panel.draw_critical and panel.n_critical:
+        notes.append(f"{panel.n_critical:,} track ends: too many to mark")
+    if panel.too_dense:
+        notes.append(f"{panel.too_dense:,} track ends too dense to mark at this size")
+    if notes:
+        text = getattr(ax, "text2D", ax.text)
+        text(0.5, 0.0, "\n".join(textwrap.wrap("; ".join(notes), max(20, int(w / 0.055)))), transform=ax.transAxes,
+             ha="center", va="top", fontsize=7, color="0.35")
+    if f is not None:
+        _colorbar(fig, ax, panel, label + " (first scale)", "right", panel.f)
+    handles = [Line2D([], [], color=_KIND_COLORS[k], lw=2.0, marker="o", ms=5, markeredgecolor="white",
+                      label=f"{_PLURAL[k]} ({counts[k]:,} track{'s' if counts[k] != 1 else ''})")
+               for k in _KIND_COLORS]
+    fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize=8, frameon=False,
+               title=f"tracks over {len(tr.times)} scales, ● where each ends (or at the last scale)",
+               title_fontsize=8)
+    return fig
+
+
+def _time_positions(times):
+    """``(x, zero)``: where each time is drawn on a log axis; ``t = 0`` (only the first can be)
+    one grid step (the ratio of the first two positive times) left of the smallest positive
+    time, or a decade without a second positive time; ``zero``: whether there is one."""
+    x = np.asarray(times, dtype=np.float64).copy()
+    zero = bool(len(x) and x[0] <= 0)
+    if zero:
+        pos = x[x > 0]
+        x[0] = pos[0] ** 2 / pos[1] if len(pos) > 1 else (pos[0] / 10 if len(pos) else 1.0)
+    return x, zero
+
+
+def lifetime_chart(tracks, ax=None, title=None):
+    """How long each track lives: one horizontal bar per track from the scale it starts at to the
+    scale it ends at, on a logarithmic time axis, the longest-lived at the top.
+
+    Bars are coloured by kind (minima blue, saddles green, maxima red); a track alive at the last
+    scale runs to the right edge, past the last scale (dotted line), and ends in a black "▶" that
+    says it lives on. A track seen at one scale only (a zero-length bar) is marked by a short
+    vertical tick. With many tracks (more than 80) the rows are on a log scale of their rank
+    (1 at the top): the longest-lived stay readable one by one while the thousands of short
+    ones (a noisy field's) show as a block at the bottom.
+
+    **t = 0** (the field itself, as a grid starting at 0 has it) cannot sit on a log axis: it is
+    drawn one grid step left of the smallest positive time (the ratio of the first two positive
+    times), labelled "0", behind a dashed break line. Bars that start there start at "0".
+
+    Parameters
+    ----------
+    tracks : Tracks
+        From :func:`o3dheat.track_critical_points`.
+    ax : matplotlib.axes.Axes, optional
+        Draw into this axes (default: a new figure).
+    title : str, optional
+        Default: how many tracks over how many scales.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure of the axes (its first axes is the chart).
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat, o3dheat.plot as plot
+    >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40)
+    >>> V = m.vertex.positions.numpy().astype(float)
+    >>> f = 0.2 * V[:, 2] + np.exp(-((V[:, 0] - 1) ** 2 + V[:, 1] ** 2) / 0.05)
+    >>> t = np.r_[0.0, np.geomspace(1e-3, 1.0, 11)]
+    >>> tr = o3dheat.track_critical_points(m, o3dheat.heat_flow(m, f, t), t)
+    >>> fig = plot.lifetime_chart(tr)
+    >>> ax = fig.axes[0]
+    >>> len(ax.patches) == len(tr), ax.get_xscale()
+    (True, 'log')
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
+
+    tr = _check_tracks(tracks)
+    p, T = len(tr), len(tr.times)
+    x, zero = _time_positions(tr.times)
+    step = x[-1] / x[-2] if T > 1 else 10.0
+    right = x[-1] * step ** 1.5  # the right edge: past the last scale
+    order = _by_lifetime(tr)
+    first, last = tr.first[order], tr.last[order]
+    kinds = np.asarray(tr.kind)[order]
+    alive = last == T - 1
+    start, end = x[first], np.where(alive, right, x[last])
+    many = p > 80
+    if ax is None:
+        fig = Figure(figsize=(7.0, 5.2 if many else min(1.6 + 0.2 * max(p, 1), 7.0)), dpi=100, layout="constrained")
+        ax = fig.subplots()
+    else:
+        fig = ax.figure
+    rank = np.arange(1, p + 1)
+    color = [_KIND_COLORS[k] for k in kinds]
+    # rows at least 4 pixels high get a white edge: neighbours of one kind stay apart
+    height_px = 72.0 * fig.get_figheight() * 0.8 * (np.log((rank + 0.5) / (rank - 0.5)) / np.log(2 * p + 1) if many
+                                                     else np.full(p, 1.0 / max(p, 1)))
+    apart = height_px >= 4
+    for sel, lw in ((~apart, 0.0), (apart, 0.6)):
+        if sel.any():
+            ax.barh(rank[sel], (end - start)[sel], left=start[sel], height=1.0 if many else 0.7,
+                    color=np.asarray(color, object)[sel].tolist(), edgecolor="white", linewidth=lw)
+    point = first == last
+    if point.any():  # zero-length bars: a tick at their one scale
+        ax.scatter(start[point], rank[point], marker="|", s=30 if not many else 12, c=np.asarray(color, object)[point],
+                   linewidths=1.0)
+    if alive.any():
+        ax.scatter(np.full(int(alive.sum()), right), rank[alive], marker=">", s=28 if not many else 14, c="black",
+                   zorder=3, clip_on=False)
+    ax.axvline(x[-1], color="0.5", lw=0.8, ls=":")
+    ax.set_xscale("log")
+    lo = x[0] / step ** 0.5
+    ax.set_xlim(lo, right * step ** 0.4)
+    if many:
+        ax.set_yscale("log")
+        ax.set_ylim(p + 0.5, 0.5)
+        ax.set_ylabel("tracks by lifetime (rank, log scale)")
+    else:
+        ax.set_ylim(p + 0.5, 0.5)
+        if p <= 30:
+            ax.set_yticks(rank, [str(i) for i in order], fontsize=7)
+            ax.set_ylabel("track (its index), longest-lived first")
+        else:
+            from matplotlib.ticker import MaxNLocator
+
+            ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+            ax.set_ylabel("tracks by lifetime (rank)")
+    pos = x[1:] if zero and T > 1 else x  # the positive times
+    ticks, labels = ([x[0]], ["0"]) if zero else ([], [])
+    decades = range(int(np.ceil(np.log10(pos[0]) - 1e-9)), int(np.floor(np.log10(pos[-1]) + 1e-9)) + 1)
+    if len(decades) >= 2:
+        ticks += [10.0 ** d for d in decades]
+        labels += [f"$10^{{{d}}}$" for d in decades]
+    else:  # less than a decade: the ends of the grid
+        ticks += [pos[0], pos[-1]] if len(pos) > 1 else [pos[0]]
+        labels += [f"{v:.2g}" for v in ticks[len(labels):]]
+    ax.xaxis.set_major_locator(FixedLocator(ticks))
+    ax.set_xticklabels(labels, fontsize=8)
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    if zero and T > 1:
+        ax.axvline(np.sqrt(x[0] * x[1]), color="0.4", lw=0.8, ls="--")
+    ax.set_xlabel("t (log scale" + ("; t = 0 drawn one grid step left of the smallest positive time)" if zero else ")"),
+                  fontsize=9)
+    counts = {k: int((kinds == k).sum()) for k in _KIND_COLORS}
+    handles = [Line2D([], [], color=_KIND_COLORS[k], lw=6, label=f"{_PLURAL[k]} ({counts[k]:,})") for k in _KIND_COLORS]
+    handles.append(Line2D([], [], ls="", marker=">", color="black", label=f"lives on ({int(alive.sum()):,})"))
+    ax.legend(handles=handles, fontsize=8, loc="lower right", framealpha=0.9)
+    ax.set_title(title or f"lifetimes of {p:,} tracks of critical points over {T} scales", fontsize=10)
+    ax.tick_params(axis="y", labelsize=8)
     return fig

@@ -257,7 +257,7 @@ def test_cli_spectrum_and_figure(tmp_path, sphere_ply, capsys):
     assert main(["spectrum", str(sphere_ply), "-k", "0", "-o", str(tmp_path / "t.npz")]) == 2
     figs = tmp_path / "figs"
     assert main(["figure", str(sphere_ply), "-o", str(figs), "-k", "30", "--up", "y"]) == 0
-    assert (figs / "index.md").exists() and len(list(figs.glob("*.png"))) == 10
+    assert (figs / "index.md").exists() and len(list(figs.glob("*.png"))) == 12  # 10 + the tracks' 2 (issue 24)
     assert main(["figure", str(sphere_ply), "-o", str(figs), "--attribute", "nope", "--overwrite"]) == 2
     assert "no vertex attribute" in capsys.readouterr().err
     before = (figs / "index.md").read_bytes()

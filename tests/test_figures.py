@@ -204,3 +204,62 @@ def test_gallery_colorbars_name_the_field_drawn():
         label = next(ast.literal_eval(k.value) for k in c.keywords if k.arg == "label")
         assert source.startswith("F[") and "mean curvature" in label, (source, label)
     assert 'F = out.vertex["mean_curvature_smooth"]' in path.read_text()
+
+
+# ------------------------------------------------------------------ tracks across scales (issue 24)
+def bunny_like():
+    from o3dheat.demo import sample_mesh
+    from o3dheat.sampling import decimate
+
+    try:
+        return decimate(sample_mesh("bunny"), target_faces=20000).arrays, "y"
+    except o3dheat.MeshError:  # pymeshlab's sample absent: a bumpy torus of about the size
+        return decimate(o3dheat.demo.sample_mesh("torus"), target_faces=20000).arrays, "z"
+
+
+@pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
+@pytest.mark.parametrize("which", ["bunny", "three parts", "boundary"])
+@pytest.mark.filterwarnings("error:constrained_layout not applied")
+def test_track_figures_show_the_surface_and_one_bar_per_track(tmp_path, monkeypatch, which):
+    """The tracks' figures of the default field's heat flow: the surface panel passes the checks
+    of every recipe's panels (all three parts seen), the chart has one bar per track on a log
+    time axis with t = 0 labelled, both are in index.md."""
+    if which == "bunny":
+        (V, F), up = bunny_like()
+    else:
+        (V, F), up = (three_parts() if which == "three parts" else wavy_sheet()), "z"
+    made, charted = [], []
+    save, chart = figures._save, plot.lifetime_chart
+    monkeypatch.setattr(figures, "_save", lambda fig, path: (made.append((path.name, fig)), save(fig, path)))
+    monkeypatch.setattr(plot, "lifetime_chart", lambda tr, **kw: (charted.append(tr), chart(tr, **kw))[1])
+    index = figures.track_figures((V, F), tmp_path, name=which, up=up)
+    text = index.read_text()
+    assert [n for n, _ in made] == ["tracks_paths.png", "tracks_lifetimes.png"]
+    for name, _ in made:
+        assert name in text and not_blank(tmp_path / name), name
+    paths, lifetimes = (fig for _, fig in made)
+    images = [ax for ax in paths.axes if ax.get_images()]
+    assert len(images) == 1
+    share, spread, covered, pieces = panel_report(np.asarray(images[0].get_images()[0].get_array()))
+    where = f"{which}: surface {share:.3f}, spread {spread:.1f}, markers and lines {covered:.3f}"
+    assert share > 0.15 and spread > 10 and 0.0005 < covered < 0.12, where
+    if which == "three parts":
+        assert pieces >= 3, where + f", {pieces} parts seen"
+    (tr,) = charted
+    ax = lifetimes.axes[0]
+    assert ax.get_xscale() == "log" and len(ax.patches) == len(tr) > 0
+    assert ax.get_xticklabels()[0].get_text() == "0" and "t = 0 is drawn one grid step left" in text
+    assert len(tr.times) == figures.TRACK_SCALES
+    if which == "three parts":  # no track of a part's rounding errors (or of the order of its vertices)
+        assert "left out" in text and (tr.last == len(tr.times) - 1).sum() < 20
+
+
+def test_paper_figures_with_tracks_lists_them(tmp_path):
+    V, F = icosphere(2)
+    index = figures.paper_figures((V, F), tmp_path, k=20, tracks=True)
+    pngs = sorted(p.name for p in tmp_path.glob("*.png"))
+    assert len(pngs) == 12 and {"tracks_paths.png", "tracks_lifetimes.png"} <= set(pngs)
+    text = index.read_text()
+    assert all(p in text for p in pngs)
+    with pytest.raises(o3dheat.MeshError, match="at least 3"):
+        figures.track_figures((V, F), tmp_path / "x", count=2)

@@ -424,3 +424,89 @@ def test_a_small_part_holding_the_variation_gets_the_colours():
     fig = plot.field((V, F), f, level_sets=None, critical_points=False)
     lo, hi = fig.axes[1].get_ylim()
     assert lo < 0.75 and hi > 1.25  # the small part's values 0.7 .. 1.3 are in the range
+
+
+# ------------------------------------------------------------------ tracks across scales (issue 24)
+def torus_tracks(t=(0.0, 0.05, 0.1, 0.2, 0.4)):
+    V, F = torus(1.0, 0.4, 40, 20)
+    rng = np.random.default_rng(1)
+    f = V[:, 0] + 0.3 * V[:, 2] + 0.05 * rng.standard_normal(len(V))
+    t = np.asarray(t)
+    Ft = o3dheat.heat_flow((V, F), f, t)
+    return (V, F), Ft, o3dheat.track_critical_points((V, F), Ft, t)
+
+
+@needs_renderer
+def test_tracks_draws_lines_and_end_markers_in_the_kinds_colours(tmp_path):
+    mesh, Ft, tr = torus_tracks()
+    fig = plot.tracks(mesh, tr, Ft, title="tracks", label="f")
+    img = fig.axes[0].get_images()[0].get_array()
+    assert pixels(img, "red") and pixels(img, "blue") and pixels(img, "green")
+    assert fig.axes[1].get_ylabel() == "f (first scale)"  # the colorbar
+    texts = legend_texts(fig)
+    assert len(texts) == 3 and all(k in " ".join(texts) for k in ("minima", "saddles", "maxima"))
+    total = sum(int(s.split("(")[1].split()[0].replace(",", "")) for s in texts)
+    assert total == len(tr)
+    fig.savefig(tmp_path / "tracks.png")
+    assert not_blank(tmp_path / "tracks.png")
+    # the longest-lived only: the legend counts what is drawn, the panel says how many of how many
+    few = plot.tracks(mesh, tr, longest=3)
+    assert sum(int(s.split("(")[1].split()[0]) for s in legend_texts(few)) == 3
+    assert any(f"3 longest-lived of {len(tr)}" in t.get_text() for t in few.axes[0].texts)
+
+
+def test_tracks_with_matplotlib_and_bad_input():
+    mesh, Ft, tr = torus_tracks()
+    fig = plot.tracks(mesh, tr, Ft[:, 0], renderer="matplotlib")
+    assert fig.axes[0].name == "3d" and len(fig.axes[0].collections) >= 2  # the surface and the lines
+    with pytest.raises(o3dheat.MeshError, match="expected Tracks"):
+        plot.tracks(mesh, "tracks")
+    with pytest.raises(o3dheat.MeshError, match="not of this mesh"):
+        plot.tracks(icosphere(2), tr)
+    with pytest.raises(o3dheat.MeshError, match="expected Tracks"):
+        plot.lifetime_chart(None)
+
+
+def test_lifetime_chart_one_bar_per_track_on_a_log_axis_with_t0():
+    mesh, Ft, tr = torus_tracks()
+    fig = plot.lifetime_chart(tr)
+    ax = fig.axes[0]
+    assert ax.get_xscale() == "log" and len(ax.patches) == len(tr)
+    labels = [t.get_text() for t in ax.get_xticklabels()]
+    assert labels[0] == "0"  # t = 0, one grid step left of the first positive time
+    x0 = ax.get_xticks()[0]
+    assert np.isclose(x0, tr.times[1] ** 2 / tr.times[2]) and ax.get_xlim()[0] < x0
+    # bars start at their first scale; the tracks alive at the end run past the last scale
+    alive = tr.last == len(tr.times) - 1
+    ends = sorted(p.get_x() + p.get_width() for p in ax.patches)
+    assert sum(e > tr.times[-1] * 1.01 for e in ends) == alive.sum()
+    lives_on = [c for c in ax.collections if c.get_offsets().shape[0] == alive.sum()
+                and np.allclose(c.get_offsets()[:, 0], ends[-1])]
+    assert lives_on, "a marker says that they live on"
+    assert any("lives on" in t.get_text() for t in ax.get_legend().get_texts())
+    # the longest-lived at the top (rank 1), sorted by lifetime
+    rank = {int(round(p.get_y() + p.get_height() / 2)): p.get_width() for p in ax.patches}
+    widths = [rank[r] for r in sorted(rank)]
+    assert widths == sorted(widths, reverse=True)
+    # into a given axes; no t = 0: no "0" tick
+    from matplotlib.figure import Figure
+
+    _, _, tr2 = torus_tracks(t=(0.01, 0.05, 0.1))
+    own = Figure()
+    ax2 = own.subplots()
+    assert plot.lifetime_chart(tr2, ax=ax2) is own and len(ax2.patches) == len(tr2)
+    assert "0" not in [t.get_text() for t in ax2.get_xticklabels()]
+
+
+def test_lifetime_chart_of_many_tracks_ranks_on_a_log_axis():
+    """A noisy field has thousands of tracks: the rows are a log scale of the rank, so that the
+    longest-lived keep rows of their own."""
+    V, F = icosphere(4)
+    f = V[:, 2] + 0.2 * np.random.default_rng(0).standard_normal(len(V))
+    t = np.r_[0.0, np.geomspace(1e-3, 1.0, 12)]
+    tr = o3dheat.track_critical_points((V, F), o3dheat.heat_flow((V, F), f, t), t)
+    assert len(tr) > 100
+    ax = plot.lifetime_chart(tr).axes[0]
+    assert ax.get_yscale() == "log" and len(ax.patches) == len(tr)
+    top, bottom = ax.get_ylim()[1], ax.get_ylim()[0]
+    assert top < 1 < len(tr) < bottom  # rank 1 at the top
