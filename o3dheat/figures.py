@@ -41,6 +41,7 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     noise : float
         Noise standard deviation relative to the range of the height (default field only).
     seed : int
+        Seed of the default field's noise (results are reproducible).
     name : str
         Used in titles.
     max_faces : int

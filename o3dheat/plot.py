@@ -389,7 +389,9 @@ def drawn_critical_points(mesh, f):
     Parameters
     ----------
     mesh : mesh, (V, F) or o3dheat.topology.Surface
+        The surface (its parts are found from its faces).
     f : (n,) array_like
+        One value per vertex.
 
     Returns
     -------
@@ -810,7 +812,7 @@ def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cma
     if shared_range:
         _colorbar(fig, axes, panels[0], label, "right", values)
     else:
-        for ax, p in zip(axes, panels):
+        for ax, p in zip(axes, panels, strict=True):
             _colorbar(fig, ax, p, label, "bottom", p.f)
     _legend(fig, panels, counts=single)
     if suptitle:
@@ -831,6 +833,7 @@ def field(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cmap
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
         Every part of a multi-part mesh is framed.
     f : (n,) array_like
+        The field, one value per vertex.
     level_sets : int, sequence of float, or None
         Number of level sets evenly spaced strictly between the field's minimum and maximum,
         their values, or None for none. They are marked on the colorbar too.
@@ -842,6 +845,7 @@ def field(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cmap
         Matplotlib colormap; the range is the 2nd–98th percentile of f (the colorbar's arrows
         show values beyond it).
     title : str, optional
+        Written above the panel.
     size : float
         Inches (the picture's longer side).
     up : {"z", "y", "x"}
@@ -880,9 +884,11 @@ def fields(mesh, F_values, titles=None, ncols=None, level_sets=10, critical_poin
     Parameters
     ----------
     mesh : mesh or (V, F)
+        The surface, as for :func:`field`.
     F_values : (n, T) array_like
         One column per panel.
     titles : sequence of str, optional
+        One per panel.
     ncols : int, optional
         Panels per row (default: all in one row, at most 5).
     level_sets, critical_points, view, cmap, up, label, renderer
@@ -893,6 +899,7 @@ def fields(mesh, F_values, titles=None, ncols=None, level_sets=10, critical_poin
     size : float
         Inches per panel.
     suptitle : str, optional
+        Written above all the panels.
 
     Returns
     -------
@@ -993,6 +1000,7 @@ def scale_space(ss, title=None):
     ss : ScaleSpace
         From :func:`o3dheat.scale_space`.
     title : str, optional
+        Written above the chart.
 
     Returns
     -------
@@ -1076,6 +1084,7 @@ def persistence_diagram(diagram, f=None, title=None):
     f : (n,) array_like, optional
         The field, to place the essential classes (their values are not in the diagram).
     title : str, optional
+        Written above the diagram.
 
     Returns
     -------
@@ -1159,7 +1168,9 @@ def study(table, descriptor="hks_density", metric="rel_l2", title=None):
     descriptor : str
         Which descriptor to draw ("eigenvalues": one bar per kernel).
     metric : {"rel_l2", "rel_linf"}
+        The column drawn: the relative L2 or L∞ discrepancy.
     title : str, optional
+        Written above the panels.
 
     Returns
     -------
@@ -1193,7 +1204,7 @@ def study(table, descriptor="hks_density", metric="rel_l2", title=None):
     means = t.groupby(["kind", "kernel", "scale"])[metric].mean()
     bars = bool((t["scale"] == 0).all())
     positive = means[means > 0]
-    for ax, kind in zip(axes, kinds):
+    for ax, kind in zip(axes, kinds, strict=True):
         mean = means.loc[kind].reset_index()
         if bars:
             kernels = list(mean["kernel"])
