@@ -25,12 +25,13 @@ from .errors import MeshError
 from .heatflow import HeatFlow
 from .kernel import HeatKernel
 from .topology import Surface, critical_points
+from .tracking import Tracks, track_critical_points
 
 __all__ = ["project", "feature_driven", "scale_space", "ScaleSpace"]
 
 log = logging.getLogger("o3dheat")
 
-STOPS = (None, "linf", "critical_points")
+STOPS = (None, "linf", "critical_points", "tracks")
 
 
 def project(f, A):
@@ -129,6 +130,9 @@ class ScaleSpace:
         ``stop`` is None.
     stopped : bool
         Whether the criterion held.
+    tracks : Tracks or None
+        The critical points followed across the scales (:func:`o3dheat.track_critical_points`),
+        with ``stop="tracks"``.
 
     Examples
     --------
@@ -153,6 +157,7 @@ class ScaleSpace:
     tol: float | None
     stop_index: int
     stopped: bool
+    tracks: Tracks | None = None
 
     @property
     def field(self):
@@ -173,10 +178,14 @@ def scale_space(kernel, f, scales=None, stop=None, tol=None):
     scales : (T,) array_like, optional
         Increasing times >= 0; default ``kernel.scales()`` (the paper's ten; for a HeatFlow
         that computes the 100 eigenvalues that define them).
-    stop : {None, "linf", "critical_points"}
+    stop : {None, "linf", "critical_points", "tracks"}
         "linf": stop when ``‖Φ_{t_{i+1}} f − Φ_{t_i} f‖∞ < tol``; "critical_points": stop when
         two consecutive scales have the same critical points (minima, saddles with
-        multiplicity, maxima).
+        multiplicity, maxima); "tracks": stop when no extremum is born or dies between two
+        consecutive scales (the critical points followed along the gradient flow,
+        :func:`o3dheat.track_critical_points`: they may move, as they do under smoothing, where
+        "critical_points" asks for the same vertices; by the Morse relation the saddles' count
+        is then the same too).
     tol : float, optional
         Threshold of "linf" in the units of f; default ``1e-3 · ‖f‖∞``.
 
@@ -228,16 +237,20 @@ def scale_space(kernel, f, scales=None, stop=None, tol=None):
         errors = np.abs(F - f[:, None]).max(axis=0) / nf if nf > 0 else np.zeros(len(t))
     variation = np.abs(np.diff(F, axis=1)).max(axis=0) if len(t) > 1 else np.zeros(0)
     faces = kernel.spectrum.faces if isinstance(kernel, HeatKernel) else kernel.faces
-    critical, counts = _critical_per_scale(kernel.n, faces, F, required=stop == "critical_points")
+    critical, counts = _critical_per_scale(kernel.n, faces, F, required=stop in ("critical_points", "tracks"))
     T = len(t)
-    hits = []
+    hits, tracks = [], None
     if stop == "linf":
         hits = [j for j in range(1, T) if variation[j - 1] < tol]
     elif stop == "critical_points":
         hits = [j for j in range(1, T) if critical[j].same_as(critical[j - 1])]
+    elif stop == "tracks":
+        tracks = track_critical_points(Surface.from_faces(kernel.n, faces), F, t)
+        changed = {e["scale"] for e in tracks.events if np.any(tracks.kind[e["tracks"]] != "saddle")}
+        hits = [j for j in range(1, T) if j - 1 not in changed]
     stopped = bool(hits)
     return ScaleSpace(t, F, errors, variation, counts, critical, stop, tol,
-                      hits[0] if stopped else T - 1, stopped)
+                      hits[0] if stopped else T - 1, stopped, tracks)
 
 
 def _critical_per_scale(n, faces, F, required):
@@ -249,7 +262,7 @@ def _critical_per_scale(n, faces, F, required):
         S = Surface.from_faces(n, faces)
     except MeshError as e:
         if required:
-            raise MeshError(f"stop='critical_points' needs a 2-manifold mesh: {e}") from e
+            raise MeshError(f"this stop criterion needs a 2-manifold mesh: {e}") from e
         log.warning("critical points are not computed (%s); critical_counts is -1", e)
         return None, np.full((T, 3), -1, np.int64)
     critical = [critical_points(S, F[:, i]) for i in range(T)]

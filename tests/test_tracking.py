@@ -218,3 +218,22 @@ def test_persistence_is_computed_on_first_read_and_pickled():
         assert np.all(np.isnan(tr.persistence[~alive, j]))
     np.testing.assert_array_equal(back.persistence, tr.persistence)
     assert back._source is None and back.events == tr.events
+
+
+def test_the_stop_criterion_reads_the_tracks():
+    """Issue 24: scale_space(stop="tracks") stops at the first scale where no extremum is born or
+    dies (the critical points may move); "critical_points" needs the very same vertices, so it
+    stops no earlier, and at the tracks' stop the counts agree."""
+    mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
+    z = mesh.vertex.positions.numpy()[:, 2]
+    noisy = z + 0.1 * np.random.default_rng(0).standard_normal(len(z))
+    t = np.geomspace(1e-3, 1, 30)
+    flow = o3dheat.HeatFlow(mesh)
+    tr = o3dheat.scale_space(flow, noisy, scales=t, stop="tracks")
+    cp = o3dheat.scale_space(flow, noisy, scales=t, stop="critical_points")
+    j = tr.stop_index
+    assert tr.stopped and tr.tracks is not None and 1 <= j < cp.stop_index
+    assert tr.critical_counts[j].tolist() == tr.critical_counts[j - 1].tolist()
+    assert not any(e["scale"] == j - 1 and "saddle" not in tr.tracks.kind[e["tracks"]][:1] for e in tr.tracks.events)
+    assert not tr.critical[j].same_as(tr.critical[j - 1])  # they moved: the tracks see it, the sets do not
+    assert cp.tracks is None
