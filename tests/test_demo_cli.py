@@ -81,7 +81,7 @@ def test_cli_filters(capsys):
     out = capsys.readouterr().out
     assert "heat_smooth" in out and "colorize" in out
     lines = out.strip().splitlines()
-    assert len(lines) == 6  # one line per built-in filter
+    assert len(lines) == 7  # one line per built-in filter
     for line in lines:  # plain text, whole sentences
         assert "``" not in line and "`" not in line and ":func:" not in line and line.endswith("."), line
     assert main(["filters", "hks"]) == 0
