@@ -237,3 +237,16 @@ def test_the_stop_criterion_reads_the_tracks():
     assert not any(e["scale"] == j - 1 and "saddle" not in tr.tracks.kind[e["tracks"]][:1] for e in tr.tracks.events)
     assert not tr.critical[j].same_as(tr.critical[j - 1])  # they moved: the tracks see it, the sets do not
     assert cp.tracks is None
+
+
+def test_chi_at_every_scale_on_genus_two():
+    """Issue 24's ground truth: χ at every scale on genus 2 too (χ = -2), for a noisy field."""
+    from test_topology import genus2
+
+    V, F = genus2()
+    f = V[:, 0] + 0.05 * np.random.default_rng(3).standard_normal(len(V))
+    t = np.geomspace(1e-4, 1.0, 20)
+    Ft = o3dheat.heat_flow((V, F), f, t)
+    tr = o3dheat.track_critical_points((V, F), Ft, t)
+    _check_invariants(tr, (V, F), Ft)
+    assert all(tr.euler_characteristic(j) == -2 for j in range(len(t)))
