@@ -100,7 +100,7 @@ def _navigation(html):
 
 
 def _mathjax_src(html):
-    return re.findall(r'<script[^>]*src="([^"]*tex[^"]*\.js)"', html)
+    return re.findall(r'<script[^>]*src="([^"?]*tex[^"?]*\.js)(?:\?[^"]*)?"', html)  # Sphinx may add ?v=digest
 
 
 @pytest.fixture(scope="module")
