@@ -22,8 +22,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import _geometry_loops as loops
+from ._tables import edges, unit_scale, vertex_normals
 from .errors import MeshError
-from .mesh import _edges, unit_scale
 
 __all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "operators", "adjacency_pattern", "mean_curvature",
            "gaussian_curvature", "MASS_KINDS", "check_mass_kind"]
@@ -249,17 +249,6 @@ def mass_matrix(V, F, kind="consistent"):
     return _mass(kind, B, areas, lumped)
 
 
-def _vertex_normals(V, F):
-    """Area-weighted vertex normals (unit length where defined)."""
-    V = V / unit_scale(V)  # exact; unit normals do not depend on the scale
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])  # 2 |t| times the face normal
-    N = np.zeros_like(V)
-    for i in range(3):
-        np.add.at(N, F[:, i], n)
-    length = np.linalg.norm(N, axis=1, keepdims=True)
-    return np.divide(N, length, out=np.zeros_like(N), where=length > 0)
-
-
 def mean_curvature(V, F):
     """Mean curvature per vertex from the FEM operators: ``H = ½ ⟨A⁻¹ L V, n⟩``.
 
@@ -291,7 +280,7 @@ def mean_curvature(V, F):
     F = np.asarray(F, dtype=np.int64)
     L, _, a = operators(V, F, "identity")
     LV = L @ V
-    H = 0.5 * np.einsum("ij,ij->i", LV, _vertex_normals(V, F))
+    H = 0.5 * np.einsum("ij,ij->i", LV, vertex_normals(V, F))
     return np.divide(H, a, out=np.zeros(len(V)), where=a > 0)
 
 
@@ -330,7 +319,7 @@ def gaussian_curvature(V, F):
         w = V[F[:, (i + 2) % 3]] - V[F[:, i]]
         ang[:, i] = np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), np.einsum("ij,ij->i", u, w))
     total = np.bincount(F.reshape(-1), weights=ang.reshape(-1), minlength=n)
-    E, counts = _edges(F)
+    E, counts = edges(F)
     on_boundary = np.zeros(n, bool)
     on_boundary[E[counts == 1].reshape(-1)] = True
     defect = np.where(on_boundary, np.pi, 2 * np.pi) - total

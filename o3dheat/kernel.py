@@ -35,7 +35,7 @@ import numpy as np
 
 from . import checks
 from .errors import MeshError, SolverError
-from .spectrum import Spectrum, _all_zero
+from .spectrum import Spectrum, all_zero
 
 __all__ = ["HeatKernel", "heat_kernel", "VARIANTS", "GRIDS", "HKS_FORMS", "HKS_DEFAULT", "NORMALIZATIONS",
            "mass_of", "variant_of_mass", "first_nonzero", "transfer_function"]
@@ -542,7 +542,7 @@ class HeatKernel:
         if grid not in GRIDS:
             raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(GRIDS)}")
         lk = float(np.max(self.rates))
-        if lk <= 0 or _all_zero(self.spectrum.eigenvalues, self.spectrum.mass):
+        if lk <= 0 or all_zero(self.spectrum.eigenvalues, self.spectrum.mass):
             raise MeshError(f"all {len(self.rates)} eigenvalues are zero (a mesh with at least as many connected "
                             "components as eigenpairs has only constant eigenfunctions): compute more "
                             "eigenpairs than the mesh has components to define the scales")

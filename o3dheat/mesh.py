@@ -57,6 +57,18 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from . import checks
+from ._tables import (
+    corner_components,
+    corner_pairs,
+    degenerate,
+    edges,
+    first_copies,
+    first_faces,
+    non_manifold_vertices,
+    unit_scale,
+    weld_copies,
+    zero_area,
+)
 from .errors import MeshError
 
 __all__ = ["as_arrays", "mesh_of", "check_points", "check_mesh", "MeshReport", "prepare", "Prepared", "face_areas", "repair", "Repaired"]
@@ -205,7 +217,7 @@ def check_points(P, planar=True, min_points=4, what="the point cloud"):
     if not np.all(np.isfinite(P)):
         raise MeshError(f"{what} has NaN or infinite coordinates")
     n = len(P)
-    distinct = int(np.sum(_first_copies(P) == np.arange(n))) if n else 0
+    distinct = int(np.sum(first_copies(P) == np.arange(n))) if n else 0
     if distinct == 1 or (n and np.all(P == P[0])):
         raise MeshError(f"{what}'s {n} points all coincide: no surface passes through them")
     if distinct < min_points:
@@ -219,11 +231,6 @@ def check_points(P, planar=True, min_points=4, what="the point cloud"):
         raise MeshError(f"{what}'s {n} points lie in one plane: a reconstruction needs points around a "
                         "volume (for a flat patch, use a point-cloud operator or triangulate it)")
     return P
-
-
-def _degenerate(F):
-    """Faces that repeat a vertex index."""
-    return (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
 
 
 def _shaped(mesh):
@@ -305,24 +312,6 @@ def as_arrays(mesh):
 EXTENT_RANGE = (1e-100, 1e100)
 
 
-def unit_scale(V):
-    """A power of two ``s`` with ``V / s`` of extent near 1, or 1 when the extent is within
-    ``[2^-60, 2^60]``: squares of coordinates then neither overflow nor underflow, and dividing
-    by ``s`` is exact (no rounding), so results at ordinary scales are unchanged bit for bit.
-
-    Examples
-    --------
-    >>> import numpy as np, o3dheat.mesh as m
-    >>> m.unit_scale(np.eye(3)), m.unit_scale(1e90 * np.eye(3)) == 2.0 ** 299
-    (1.0, True)
-    """
-    V = np.asarray(V)
-    extent = float(np.max(np.ptp(V, axis=0))) if len(V) else 0.0
-    if not np.isfinite(extent) or extent == 0 or 2.0**-60 <= extent <= 2.0**60:
-        return 1.0
-    return float(2.0 ** np.round(np.log2(extent)))
-
-
 def face_areas(V, F):
     """Areas of the triangles.
 
@@ -352,110 +341,6 @@ def face_areas(V, F):
     return area * (s * s) if s != 1.0 else area
 
 
-def _unique_rows(A, return_index=False, return_counts=False):
-    """``np.unique(A, axis=0, ...)`` for rows of non-negative integers, 5-10x faster: each row is
-    packed into one int64 key when that fits (the general path otherwise)."""
-    A = np.asarray(A, dtype=np.int64)
-    base = int(A.max()) + 1 if A.size else 1
-    c = A.shape[1] if A.ndim == 2 else 1
-    if A.ndim != 2 or A.min(initial=0) < 0 or c * np.log2(max(base, 2)) >= 62:
-        return np.unique(A, axis=0, return_index=return_index, return_counts=return_counts)
-    key = np.zeros(len(A), np.int64)
-    for j in range(c):
-        key = key * base + A[:, j]
-    out = np.unique(key, return_index=True, return_counts=return_counts)
-    rows = A[out[1]]
-    res = (rows,) + ((out[1],) if return_index else ()) + ((out[2],) if return_counts else ())
-    return res if len(res) > 1 else rows
-
-
-def _edges(F):
-    """Unique undirected edges (e, 2) and, for each, the number of incident faces."""
-    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    E, counts = _unique_rows(E, return_counts=True)
-    return E, counts
-
-
-def _zero_area(V, F):
-    from ._geometry_loops import double_areas
-
-    s = unit_scale(V)  # relative test: at unit scale (exact, a power of two)
-    V = V / s if s != 1.0 else V
-    area = 0.5 * double_areas(V, F)
-    scale = np.max(np.ptp(V, axis=0)) if len(V) else 1.0
-    return area <= 1e-14 * max(scale, np.finfo(float).tiny) ** 2
-
-
-
-def _first_copies(P, bits=64):
-    """(m,) int64: for each row of ``P`` (m, 3), the smallest index of a row with exactly the same
-    float64 values (itself when unique; -0.0 equals 0.0, NaN equals nothing), in one pass over a
-    hash table of the coordinates' bits (:func:`o3dheat._geometry_loops.first_rows`; ``bits``
-    narrows the hash, for tests). An STL's 6M corners: about 0.5 s."""
-    from ._geometry_loops import first_rows
-
-    P = np.ascontiguousarray(P, dtype=np.float64) + 0.0  # -0.0 hashes as 0.0
-    return first_rows(P.view(np.uint64), P, bits)
-
-
-def _first_faces(F):
-    """(m,) bool: True at the first of each set of faces with the same three vertices (in any
-    order), in one pass (:func:`o3dheat._geometry_loops.first_rows` on the sorted triples)."""
-    from ._geometry_loops import first_rows
-
-    S = np.sort(np.asarray(F, dtype=np.int64), axis=1)
-    return first_rows(S.view(np.uint64), S) == np.arange(len(S))
-
-
-def _weld_map(V, F):
-    """``rep`` (n,) int64: for each vertex referenced by ``F``, the smallest index of a referenced
-    vertex with exactly the same coordinates it is welded into; ``rep[i] = i`` otherwise
-    (unreferenced vertices are never welded). Vectorised (:func:`_first_copies`). See
-    :func:`_weld` for the copies kept apart."""
-    return _weld(V, F)[0]
-
-
-def _weld(V, F):
-    """(``rep`` as :func:`_weld_map`, ``apart``): ``apart`` counts the referenced vertices left
-    as separate vertices although they coincide exactly with another referenced one -- the copies
-    welding keeps apart to keep the surface a manifold, i.e. the vertices it *splits*: a soup
-    (an STL) cannot tell a pinched vertex (one vertex, two fans) from two coincident vertices
-    with a fan each (pymeshlab's cow.obj has such a pair, vertices 45 and 2904), and welding
-    gives one vertex per fan, the 2-manifold; the count says how many such splits it made."""
-    n = len(V)
-    rep = np.arange(n, dtype=np.int64)
-    if n == 0 or len(F) == 0:
-        return rep, 0
-    used = np.zeros(n, bool)
-    used[F.reshape(-1)] = True
-    idx = np.flatnonzero(used)
-    rep[idx] = idx[_first_copies(V[idx])]
-    if np.all(rep == np.arange(n)):
-        return rep, 0
-    positions = len(np.unique(rep[idx]))
-    # copies are welded only where that keeps the surface a manifold: a mesh split on purpose at a
-    # non-manifold edge or vertex (o3dheat.repair) stays split. The corners of one input vertex
-    # stay together; corners of coincident copies join across welded edges with exactly two faces.
-    m = len(F)
-    W = rep[F]  # pairs from the welded faces that stay (not degenerate, first of duplicates)
-    ok = ~_degenerate(W)  # (the faces prepare drops after welding: degenerate, duplicate, zero-area)
-    _, first = _unique_rows(np.sort(W, axis=1), return_index=True)
-    ok &= np.isin(np.arange(m), first)
-    ok[ok] &= ~_zero_area(V, W[ok])
-    faces = np.flatnonzero(ok)
-    u, v = _corner_pairs(W[faces], n)
-    u, v = 3 * faces[u // 3] + u % 3, 3 * faces[v // 3] + v % 3
-    order = np.argsort(F.reshape(-1), kind="stable")  # corners of the same input vertex
-    same = F.reshape(-1)[order[1:]] == F.reshape(-1)[order[:-1]]
-    u, v = np.r_[u, order[1:][same]], np.r_[v, order[:-1][same]]
-    k, lab = _corner_components(m, u, v)
-    flat = F.reshape(-1)
-    smallest = np.full(k, n, np.int64)
-    np.minimum.at(smallest, lab, flat)
-    rep[flat] = smallest[lab]
-    return rep, int(len(np.unique(rep[idx])) - positions)
-
-
 @dataclass
 class _Cleaned:
     """What :func:`_clean` did to a mesh's faces: the one set of rules :func:`prepare` (every
@@ -464,7 +349,7 @@ class _Cleaned:
     F: np.ndarray  # the faces used, in the caller's vertex numbering (welded copies replaced)
     rep: np.ndarray | None  # weld map (n,) or None when nothing was welded
     welded: int = 0  # referenced copies welded into an earlier one
-    split: int = 0  # referenced vertices coincident with another, kept apart (see _weld)
+    split: int = 0  # referenced vertices coincident with another, kept apart (see weld)
     degenerate: int = 0
     duplicate: int = 0
     zero_area: int = 0
@@ -476,22 +361,22 @@ def _clean(V, F, weld=True):
     """Weld, then drop degenerate, duplicate and zero-area faces, in this order (the rules of the
     module docstring), counting each. ``V`` must be finite, ``F`` in range."""
     n = len(V)
-    rep, split = _weld(V, F) if weld else (None, 0)
+    rep, split = weld_copies(V, F) if weld else (None, 0)
     welded = 0 if rep is None else int(np.sum(rep != np.arange(n)))
     if welded:
         F = rep[F]
     else:
         rep = None
     c = _Cleaned(F, rep, welded, split)
-    bad = _degenerate(F)
+    bad = degenerate(F)
     c.degenerate = int(bad.sum())
     F = F[~bad]
     if len(F):
-        first = _first_faces(F)
+        first = first_faces(F)
         c.duplicate = int(np.sum(~first))
         F = F[first]
     if len(F):
-        zero = _zero_area(V, F)
+        zero = zero_area(V, F)
         c.zero_area = int(zero.sum())
         F = F[~zero]
     c.F = F
@@ -588,41 +473,6 @@ def _boundary_loops(bE):
     return int(connected_components(g, directed=False)[0])
 
 
-def _non_manifold_vertices(F, n):
-    """Number of vertices whose incident faces form more than one edge-connected fan."""
-    return int(np.sum(_non_manifold_vertex_mask(F, n)))
-
-
-def _non_manifold_edge_faces(F, n):
-    """(m,) bool: the faces that have an edge shared by three or more faces."""
-    a, b = F, F[:, [1, 2, 0]]
-    key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)  # (m, 3) edge keys
-    uniq, inv, counts = np.unique(key.reshape(-1), return_inverse=True, return_counts=True)
-    return (counts[inv.reshape(-1)] > 2).reshape(-1, 3).any(axis=1)
-
-
-def _non_manifold_vertex_mask(F, n):
-    """(n,) bool: vertices whose incident faces form more than one edge-connected fan."""
-    m = len(F)
-    if m == 0:
-        return np.zeros(n, bool)
-    # corner c = (face, slot); two corners at the same vertex are adjacent when their faces share
-    # the edge (vertex, other) -- join corners through the "half-edge key" (vertex, other vertex).
-    vert = F.reshape(-1)
-    nxt = F[:, [1, 2, 0]].reshape(-1)
-    prv = F[:, [2, 0, 1]].reshape(-1)
-    keys = np.concatenate([vert * n + nxt, vert * n + prv])
-    corner = np.concatenate([np.arange(3 * m), np.arange(3 * m)])
-    order = np.argsort(keys, kind="stable")
-    ks, cs = keys[order], corner[order]
-    same = ks[1:] == ks[:-1]
-    a, b = cs[:-1][same], cs[1:][same]
-    g = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(3 * m, 3 * m))
-    _, lab = connected_components(g, directed=False)
-    fans = np.unique(np.stack([vert, lab], axis=1), axis=0)
-    return np.bincount(fans[:, 0], minlength=n) > 1
-
-
 def check_mesh(mesh, weld=True):
     """Inspect a mesh and report everything that matters to the FEM operators.
 
@@ -678,18 +528,18 @@ def check_mesh(mesh, weld=True):
         m = len(F)
     if nonfinite:
         problems.append(f"{nonfinite} non-finite vertices")
-    dup_verts = int(np.sum(_first_copies(V) != np.arange(n)))
+    dup_verts = int(np.sum(first_copies(V) != np.arange(n)))
     finite = np.all(np.isfinite(V), axis=1)
     Vf = np.where(finite[:, None], V, 0.0)
     # the very rules every computation applies (prepare), so that the counts below are those of
     # the mesh the computations use (a non-finite mesh is reported, not welded)
     c = _clean(Vf, F, weld=weld and not nonfinite)
     good = c.F
-    E, counts = _edges(good) if len(good) else (np.zeros((0, 2), int), np.zeros(0, int))
+    E, counts = edges(good) if len(good) else (np.zeros((0, 2), int), np.zeros(0, int))
     nm_edges = int(np.sum(counts > 2))
     bE = E[counts == 1]
     loops = _boundary_loops(bE)
-    nm_verts = _non_manifold_vertices(good, n) if len(good) else 0
+    nm_verts = non_manifold_vertices(good, n) if len(good) else 0
     if len(good):
         g = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
         _, lab = connected_components(g, directed=False)
@@ -988,37 +838,12 @@ class Repaired:
         return "; ".join(done) if done else "nothing to repair"
 
 
-def _corner_pairs(F, n):
-    """Corners (``3 f + j``) joined across the edges that have exactly two faces: (u, v) arrays,
-    each pair the two corners of one vertex in the two faces of such an edge."""
-    a, b = F, F[:, [1, 2, 0]]
-    key = np.minimum(a, b).reshape(-1) * np.int64(n) + np.maximum(a, b).reshape(-1)  # incidence 3 f + j
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    start = np.r_[True, ks[1:] != ks[:-1]]
-    gid = np.cumsum(start) - 1
-    pair = np.flatnonzero(start & (np.bincount(gid)[gid] == 2))
-    e1, e2 = order[pair], order[pair + 1]
-    ca1, cb1 = e1, 3 * (e1 // 3) + (e1 % 3 + 1) % 3  # corners at the edge's two ends, per face
-    ca2, cb2 = e2, 3 * (e2 // 3) + (e2 % 3 + 1) % 3
-    flat = F.reshape(-1)
-    same = flat[ca1] == flat[ca2]
-    return np.r_[ca1, cb1], np.r_[np.where(same, ca2, cb2), np.where(same, cb2, ca2)]
-
-
-def _corner_components(m, u, v):
-    from scipy.sparse.csgraph import connected_components as components
-
-    g = sp.coo_matrix((np.ones(len(u)), (u, v)), shape=(3 * m, 3 * m))
-    return components(g, directed=False)
-
-
 def _split_fans(F, n):
     """Split non-manifold edges and vertices: faces meet only across edges with exactly two faces;
     every vertex gets one copy per fan of faces so connected. Returns (new faces, source vertex of
     each new vertex); a 2-manifold comes back unchanged (same numbering)."""
     m = len(F)
-    k, lab = _corner_components(m, *_corner_pairs(F, n))
+    k, lab = corner_components(m, *corner_pairs(F, n))
     flat = F.reshape(-1)
     src = np.empty(k, np.int64)
     src[lab] = flat

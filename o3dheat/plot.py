@@ -31,8 +31,8 @@ import warnings
 import numpy as np
 
 from . import checks
+from ._tables import vertex_normals
 from .errors import MeshError, SolverError
-from .fem import _vertex_normals
 from .mesh import as_arrays
 
 __all__ = ["field", "fields", "render", "renderer_available", "scale_space", "study", "drawn_critical_points",
@@ -561,7 +561,7 @@ class _Panel:
         n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
         n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-300
         colors = np.c_[self.rgb(self.f[F].mean(axis=1)) * _shade(n, view)[:, None], np.ones(len(F))]
-        facing = _vertex_normals(V, F) @ view.d >= 0
+        facing = vertex_normals(V, F) @ view.d >= 0
         ax.computed_zorder = False
         ax.add_collection3d(Poly3DCollection(V[F], facecolors=colors, edgecolors="none", linewidths=0, zorder=1))
         if len(self.segments):
@@ -778,7 +778,7 @@ def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cma
                  dpi=100, layout="constrained")
     fig.get_layout_engine().set(w_pad=0.04, h_pad=0.04, wspace=0.03, hspace=0.05)
     axes = []
-    normals = _vertex_normals(V, F)
+    normals = vertex_normals(V, F)
     for i, p in enumerate(panels):
         if r is not None:
             ax = fig.add_subplot(nrows, ncols, i + 1)
@@ -975,7 +975,7 @@ def render(mesh, f, level_sets=10, critical_points=True, view=(20.0, -60.0), cma
     frame = _View(V, view)
     r = _renderer("open3d")
     panel = _Panel(V, F, f, lo, hi, cmap, level_sets, critical_points, S, None, parts)
-    return panel.render(r, frame, _vertex_normals(V, F))
+    return panel.render(r, frame, vertex_normals(V, F))
 
 
 # ------------------------------------------------------------------ charts
@@ -1387,7 +1387,7 @@ def tracks(mesh, tracks, f=None, longest=None, view=(20.0, -60.0), cmap="Greys",
     fig = Figure(figsize=(w + (1.1 if f is not None else 0.2), h + 0.9 + (0.35 if title else 0.0)), dpi=100,
                  layout="constrained")
     fig.get_layout_engine().set(w_pad=0.04, h_pad=0.04)
-    normals = _vertex_normals(V, F)
+    normals = vertex_normals(V, F)
     if r is not None:
         ax = fig.add_subplot(1, 1, 1)
         shrink = r.size * np.ptp(frame.u) / (2 * frame.half) / (w * 100)

@@ -24,17 +24,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import checks
+from ._tables import degenerate, non_manifold_edge_faces, non_manifold_vertex_mask, unique_rows, vertex_normals
 from .errors import MeshError
-from .fem import _vertex_normals
-from .mesh import (
-    _degenerate,
-    _non_manifold_edge_faces,
-    _non_manifold_vertex_mask,
-    _unique_rows,
-    as_arrays,
-    check_points,
-    repair,
-)
+from .mesh import as_arrays, check_points, repair
 
 __all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
            "reconstruct", "transfer", "nearest", "point_arrays", "MIN_FACES", "REMESH_MAX_FACES"]
@@ -112,12 +104,12 @@ def _clean(V, F, vertex_map=None):
     vertices removed; ``vertex_map`` (source -> V) is carried along. (Dropping, not splitting as
     :func:`o3dheat.repair` does, keeps the vertex map one-to-one.)"""
     F = np.asarray(F, dtype=np.int64)
-    F = F[~_degenerate(F)]
-    _, first = _unique_rows(np.sort(F, axis=1), return_index=True)
+    F = F[~degenerate(F)]
+    _, first = unique_rows(np.sort(F, axis=1), return_index=True)
     F = F[np.sort(first)]
     n0 = len(F)
     for _ in range(10):  # dropping faces can leave new non-manifold vertices: a few rounds
-        drop = _non_manifold_edge_faces(F, len(V)) | _non_manifold_vertex_mask(F, len(V))[F].any(axis=1)
+        drop = non_manifold_edge_faces(F, len(V)) | non_manifold_vertex_mask(F, len(V))[F].any(axis=1)
         if not drop.any():
             break
         F = F[~drop]
@@ -483,7 +475,7 @@ def jitter(mesh, amount=0.3, seed=0):
             or not (np.isfinite(amount) and amount >= 0):
         raise MeshError(f"amount must be a number >= 0, got {amount!r}")
     seed = checks.count(seed, "seed", minimum=0, maximum=2**63 - 1)
-    N = _vertex_normals(V, F)
+    N = vertex_normals(V, F)
     h = float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
     with np.errstate(over="ignore", invalid="ignore"):  # overflow: reported below
         d = np.random.default_rng(seed).standard_normal(V.shape) * amount * h

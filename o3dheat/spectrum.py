@@ -504,7 +504,7 @@ def _shift(B):
     return -0.01 * _weyl_gap(B)
 
 
-def _all_zero(eigenvalues, mass):
+def all_zero(eigenvalues, mass):
     """Whether every eigenvalue is 0 to rounding (below 1e-8 of Weyl's gap ``4π / 1ᵀ B 1``): the
     spectrum then holds only the constants of the mesh's components."""
     return float(np.max(eigenvalues)) <= 1e-8 * _weyl_gap(mass)
@@ -706,7 +706,7 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
             _cache_save(cache_dir, key, lam, X, used, s, res)
     if u != 1.0:
         lam, X, s, B, areas = lam / (u * u), X / u, s / (u * u), B * (u * u), areas * (u * u)
-    if _all_zero(lam, B):  # only constants per component: say why
+    if all_zero(lam, B):  # only constants per component: say why
         from scipy.sparse.csgraph import connected_components
 
         c = connected_components(L, directed=False)[0]

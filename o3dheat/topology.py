@@ -63,8 +63,9 @@ from scipy.sparse.csgraph import connected_components
 
 from . import checks
 from ._jit import any_compiled, compiled
+from ._tables import degenerate, unique_rows, weld_map
 from .errors import MeshError
-from .mesh import _degenerate, _unique_rows, _weld_map, as_arrays, note_repair
+from .mesh import as_arrays, note_repair
 
 __all__ = ["CriticalPoints", "PersistenceDiagram", "critical_points", "persistence",
            "simplify_critical_points", "level_sets", "Surface", "warm_up", "compiled_in_this_process"]
@@ -137,7 +138,7 @@ class Surface:
         self.representative = None
         given = (V, F)  # what repairs are noted against (once per mesh, with prepare's: note_repair)
         if weld:
-            rep = _weld_map(V, F)
+            rep = weld_map(V, F)
             welded = int(np.sum(rep != np.arange(len(V))))
             if welded:
                 note_repair(given, "weld", "welded %d duplicate vertices (exactly coincident coordinates): the "
@@ -186,7 +187,7 @@ class Surface:
     def _build(self, n, F, given):
         if n >= 2**31 - 1:
             raise MeshError(f"{n} vertices: topology handles at most 2**31 - 2 vertices")
-        bad = _degenerate(F)
+        bad = degenerate(F)
         if bad.any():
             note_repair(given, "degenerate", "dropping %d degenerate faces (a vertex index repeated)", int(bad.sum()))
             F = F[~bad]
@@ -197,7 +198,7 @@ class Surface:
         F = np.ascontiguousarray(F, dtype=np.int64)
         edges = _kernel("_k_edges")(F, n)
         if np.any(edges[1] > 2):  # duplicate faces are one cause: drop them, then look again
-            _, first = _unique_rows(np.sort(F, axis=1), return_index=True)
+            _, first = unique_rows(np.sort(F, axis=1), return_index=True)
             if len(first) < len(F):
                 note_repair(given, "duplicate", "dropping %d duplicate faces", len(F) - len(first))
                 F = np.ascontiguousarray(F[np.sort(first)])

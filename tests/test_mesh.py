@@ -247,7 +247,7 @@ def test_weld_leaves_unreferenced_copies_and_clean_meshes(sphere3):
 
 @pytest.mark.parametrize("high", [5, 1000, 10**7])  # 10**7: three columns do not fit one int64 key
 def test_unique_rows_matches_numpy(high):
-    from o3dheat.mesh import _unique_rows
+    from o3dheat._tables import unique_rows as _unique_rows
 
     A = np.random.default_rng(1).integers(0, high, (500, 3))
     A[300:400] = A[:100]
@@ -385,27 +385,27 @@ def test_check_mesh_validates_shapes_exactly_as_eigensolve(V, F, message):
 
 
 def test_first_copies_match_brute_force_even_when_the_hash_collides_everywhere():
-    import o3dheat.mesh as m
+    from o3dheat._tables import first_copies, first_faces
 
     g = np.linspace(-1, 1, 41)  # grid-like coordinates: many zero low bits (a weak hash collides)
     P = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
-    np.testing.assert_array_equal(m._first_copies(P), np.arange(len(P)))
+    np.testing.assert_array_equal(first_copies(P), np.arange(len(P)))
     rng = np.random.default_rng(3)
     Q = np.concatenate([P[:500], P[rng.integers(0, 500, 40)], -0.0 * P[:1]])  # 40 copies, and -0.0
     rng.shuffle(Q)
     first = {}
     expected = np.array([first.setdefault(tuple(q + 0.0), i) for i, q in enumerate(Q)])
-    np.testing.assert_array_equal(m._first_copies(Q), expected)
+    np.testing.assert_array_equal(first_copies(Q), expected)
     for bits in (0, 2):  # a hash of 0 or 2 bits: every row collides, each is compared exactly
-        np.testing.assert_array_equal(m._first_copies(Q, bits=bits), expected)
+        np.testing.assert_array_equal(first_copies(Q, bits=bits), expected)
     R = np.concatenate([Q[:5], [[np.nan, 0.0, 0.0]], Q[:2], [[np.nan, 0.0, 0.0]]])  # NaN equals nothing
     first = {}
     expected = np.array([i if np.isnan(r).any() else first.setdefault(tuple(r + 0.0), i) for i, r in enumerate(R)])
     for bits in (64, 0):
-        np.testing.assert_array_equal(m._first_copies(R, bits=bits), expected)
+        np.testing.assert_array_equal(first_copies(R, bits=bits), expected)
     # faces: the first of each set with the same vertices, in any order
     F = np.array([[0, 1, 2], [2, 1, 0], [1, 2, 3], [3, 1, 2], [0, 1, 2], [4, 5, 6]])
-    assert m._first_faces(F).tolist() == [True, False, True, False, False, True]
+    assert first_faces(F).tolist() == [True, False, True, False, False, True]
 
 
 # ------------------------------------------------------------- one answer per surface (issue items)
