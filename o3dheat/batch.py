@@ -50,6 +50,7 @@ import traceback
 from pathlib import Path
 
 from .errors import MeshError, SolverError
+from .io import WRITERS, read_geometry, write_geometry
 
 __all__ = ["run", "expand", "outputs", "summary", "named_error", "COLUMNS", "STATUSES", "MANIFEST"]
 
@@ -61,7 +62,7 @@ COLUMNS = ["input", "output", "status", "seconds", "error"]
 STATUSES = ("done", "skipped", "failed")
 #: the file in the output folder that records the chain (a chain file), for resuming
 MANIFEST = "o3dheat-batch.toml"
-SUFFIXES = (".ply", ".npz")
+SUFFIXES = tuple(WRITERS)  # the outputs: what o3dheat.io writes
 
 
 # ------------------------------------------------------------------------------- the files
@@ -286,7 +287,6 @@ def _one(chain, src, dst, binary, single_threaded, name=None):
     """(status, seconds, error) of one file: read, run the chain, write atomically."""
     from threadpoolctl import threadpool_limits
 
-    from .io import read_geometry, write_geometry
     from .parallel import threads
 
     t0 = time.perf_counter()

@@ -264,26 +264,33 @@ def _write(path, attrs, F, binary, overwrite):
             raise MeshError(f"{name} must be True or False, got {flag!r} ({type(flag).__name__})")
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix not in (".ply", ".npz"):
-        raise MeshError(f"o3dheat writes PLY or NPZ: {path} should end in .ply or .npz")
+    if suffix not in WRITERS:
+        names = " or ".join(w.lstrip(".").upper() for w in WRITERS)
+        raise MeshError(f"o3dheat writes {names}: {path} should end in {' or '.join(WRITERS)}")
     if not overwrite and path.exists():
         raise MeshError(f"{path} exists (not overwritten)")
     n = len(attrs["positions"])
     if F is not None and F.size and (F.min() < 0 or F.max() >= min(n, 2 ** 31)):
         raise MeshError(f"cannot write {path}: face indices outside [0, {min(n, 2 ** 31) - 1}] "
                         f"(the vertices, and PLY's int32 indices)")
-    if suffix == ".npz":
-        arrays = {"positions": attrs["positions"]}
-        if F is not None:
-            arrays["indices"] = F
-        arrays.update({f"vertex_{k}": v for k, v in attrs.items() if k != "positions"})
-        for k, v in arrays.items():
-            if v.dtype.hasobject:
-                raise MeshError(f"cannot write {path}: {k!r} holds Python objects")
-        atomic_write(path, lambda fh: np.savez(fh, **arrays))
-        return
+    WRITERS[suffix](path, attrs, F, binary)
+
+
+def _write_npz(path, attrs, F, binary):
+    arrays = {"positions": attrs["positions"]}
+    if F is not None:
+        arrays["indices"] = F
+    arrays.update({f"vertex_{k}": v for k, v in attrs.items() if k != "positions"})
+    for k, v in arrays.items():
+        if v.dtype.hasobject:
+            raise MeshError(f"cannot write {path}: {k!r} holds Python objects")
+    atomic_write(path, lambda fh: np.savez(fh, **arrays))
+
+
+def _write_ply(path, attrs, F, binary):
     from plyfile import PlyData, PlyElement
 
+    n = len(attrs["positions"])
     fields, cols, comments = _ply_vertex_table(attrs, path)
     try:
         vert = np.empty(n, dtype=[(nm, np.dtype(dt).newbyteorder("<").str) for nm, dt in fields])
@@ -484,29 +491,30 @@ def read_geometry(path):
     >>> type(g).__name__, str(g.point["f"].numpy().dtype), g.point["f"].numpy()[-1].item()
     ('PointCloud', 'int32', 49)
     """
-    import open3d as o3d
-
     path = Path(path)
     if not path.is_file():
         raise MeshError(f"no such file: {path}")
-    suffix = path.suffix.lower()
-    if suffix == ".npz":
-        return _read_npz(path)
-    if suffix != ".ply":
-        if suffix in (".pcd", ".xyz", ".xyzn", ".xyzrgb", ".pts"):
-            pc = o3d.t.io.read_point_cloud(str(path))
-            if "positions" not in pc.point or len(pc.point.positions) == 0:
-                raise MeshError(f"{path}: no points could be read (unreadable or empty file)")
-            return pc
-        if suffix == ".stl":
-            return _read_stl(path)
-        if suffix == ".obj":
-            return _read_obj(path)
-        legacy = o3d.io.read_triangle_mesh(str(path))
-        if len(legacy.triangles) == 0:
-            raise MeshError(f"{path}: no triangles could be read (unreadable or empty file)")
-        return o3d.t.geometry.TriangleMesh.from_legacy(legacy)
-    return _read_ply(path)
+    return READERS.get(path.suffix.lower(), _read_open3d_mesh)(path)
+
+
+def _read_points(path):
+    """The point formats Open3D reads (PCD, XYZ, PTS): an ``o3d.t.geometry.PointCloud``."""
+    import open3d as o3d
+
+    pc = o3d.t.io.read_point_cloud(str(path))
+    if "positions" not in pc.point or len(pc.point.positions) == 0:
+        raise MeshError(f"{path}: no points could be read (unreadable or empty file)")
+    return pc
+
+
+def _read_open3d_mesh(path):
+    """Any other mesh format, by Open3D's reader (OFF, glTF...): its triangles and positions."""
+    import open3d as o3d
+
+    legacy = o3d.io.read_triangle_mesh(str(path))
+    if len(legacy.triangles) == 0:
+        raise MeshError(f"{path}: no triangles could be read (unreadable or empty file)")
+    return o3d.t.geometry.TriangleMesh.from_legacy(legacy)
 
 
 _STL_TRIANGLE = np.dtype([("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
@@ -1056,3 +1064,13 @@ def _read_npz(path):
             raise MeshError(f"{path}: {key!r} has {len(arr)} rows for {n} vertices")
         attrs[name] = o3d.core.Tensor(np.ascontiguousarray(arr))
     return geo
+
+
+#: suffix -> reader (path -> tensor TriangleMesh or PointCloud): the formats read whole, in the
+#: file's order; any other suffix goes to Open3D's mesh reader (positions and triangles). A format
+#: is added here and, when it is an output of batches too, in :data:`WRITERS`.
+READERS = {".ply": _read_ply, ".npz": _read_npz, ".stl": _read_stl, ".obj": _read_obj,
+           **dict.fromkeys((".pcd", ".xyz", ".xyzn", ".xyzrgb", ".pts"), _read_points)}
+#: suffix -> writer (path, attributes, faces or None, binary): what o3dheat writes, every attribute
+#: kept (:func:`write_mesh`, :func:`write_geometry`; batch outputs).
+WRITERS = {".ply": _write_ply, ".npz": _write_npz}

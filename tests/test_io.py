@@ -910,3 +910,17 @@ def test_colours_are_stored_once(tmp_path, colors, stored, binary):
         if colors.dtype == np.float32:
             np.testing.assert_allclose(pc.astype(np.float64) / (255.0 if stored == "uchar" else 1.0), colors,
                                        atol=1e-7)
+
+
+def test_formats_are_one_table_that_reading_and_batches_follow(tmp_path, monkeypatch):
+    """Issue 23: one READERS/WRITERS table: a reader added there is what read_mesh and batches
+    use; the batches' output suffixes are the writers'."""
+    import o3dheat.batch as batch
+    import o3dheat.io as io
+
+    assert batch.SUFFIXES == tuple(io.WRITERS) and set(io.WRITERS) <= set(io.READERS)
+    calls = []
+    sphere = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6)
+    monkeypatch.setitem(io.READERS, ".mine", lambda p: calls.append(p) or sphere)
+    (tmp_path / "x.mine").write_text("anything")
+    assert io.read_mesh(tmp_path / "x.mine") is not None and calls == [tmp_path / "x.mine"]
