@@ -81,11 +81,8 @@ def _script(tmp_path, name, text):
 
 def test_a_script_without_the_main_guard_is_told_in_one_line_before_any_worker_starts(tmp_path):
     pytest.importorskip("distributed")
-    import time
-
-    t0 = time.perf_counter()
     run = _script(tmp_path, "unguarded.py", STUDY + "study()\n")  # each worker would run it again
-    assert run.returncode == 1 and time.perf_counter() - t0 < 60
+    assert run.returncode == 1  # no worker started: no Nanny line below (a hang ends in _script's timeout)
     last = run.stderr.strip().splitlines()[-1]
     assert "unguarded.py starts a local Dask cluster from its top level: put that code under " \
            "'if __name__ == \"__main__\":'" in last and 'scheduler="sequential"' in last
