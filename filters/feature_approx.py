@@ -130,7 +130,9 @@ class FeatureApprox:
         phi = smoother(site, self.method, self.k, self.variant, tol=self.tol)
         if self.lifetime is not None:  # the critical points whose track lives to `lifetime`
             times = np.r_[0.0, np.geomspace(self.lifetime / 1000, self.lifetime, 40)]
-            A = o3dheat.track_critical_points((V, F), phi.smooth(g, times), times).features()
+            fields = phi.smooth(g, times)
+            fields[:, 0] = g  # t = 0 is the field itself (a truncated kernel gives its projection there)
+            A = o3dheat.track_critical_points((V, F), fields, times).features()
         else:
             A = o3dheat.simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)
         if self.t is None:  # the paper's scales, from the spectrum

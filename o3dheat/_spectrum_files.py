@@ -224,12 +224,14 @@ def read_spectrum(path):
     try:
         fields = {name: np.asarray(a[name], dtype=np.float64) for name in _DENSE}
         for name in _SPARSE:
-            fields[name] = sp.csc_matrix((a[f"{name}_data"], a[f"{name}_indices"], a[f"{name}_indptr"]),
-                                         shape=tuple(int(x) for x in a[f"{name}_shape"]))
+            A = sp.csc_matrix((a[f"{name}_data"], a[f"{name}_indices"], a[f"{name}_indptr"]),
+                              shape=tuple(int(x) for x in a[f"{name}_shape"]))
+            A.check_format(full_check=True)  # indices in range: products with A read only its own memory
+            fields[name] = A
         fields.update(mass_kind=str(a["mass_kind"]), backend=str(a["backend"]), sigma=float(a["sigma"]),
                       faces=a.get("faces"), inverse_mass_bound=a.get("inverse_mass_bound"))
     except (KeyError, ValueError, TypeError, IndexError) as e:
         raise MeshError(f"{path}: a broken spectrum file ({type(e).__name__}: {e})") from None
-    if fields["eigenvectors"].ndim != 2 or fields["eigenvalues"].ndim != 1:
-        raise MeshError(f"{path}: eigenvectors must be a matrix and eigenvalues a vector")
+    if fields["eigenvectors"].ndim != 2 or fields["eigenvalues"].ndim != 1 or fields["eigenvalues"].size == 0:
+        raise MeshError(f"{path}: eigenvectors must be a matrix and eigenvalues a non-empty vector")
     return fields

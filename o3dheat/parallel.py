@@ -34,6 +34,16 @@ CHUNK = 1 << 14
 _MAX_THREADS = 8
 _LOCAL = threading.local()  # .threads: set by threads() for the calling thread
 _PREFIX = "o3dheat-pool"
+_POOL_LOCK = threading.Lock()  # made anew in a forked child (another thread may hold it at the fork)
+
+
+def _new_lock_after_fork():
+    global _POOL_LOCK
+    _POOL_LOCK = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_new_lock_after_fork)
 _POOL = None  # (pid, ThreadPoolExecutor or None, its threads, capped): recreated in a forked child
 # (threads do not survive a fork)
 
@@ -121,13 +131,20 @@ def _pool(need=None):
     they can be started, or None when none could be; recreated in a forked child and when more
     are needed (each thread maps a stack and a malloc arena: only as many as used are started);
     see :func:`_started_pool`."""
+    return _pool_and_size(need)[0]
+
+
+def _pool_and_size(need=None):
+    """``(pool, its threads)`` of :func:`_pool`, read together (under a lock: two threads never
+    start two pools)."""
     global _POOL
     need = max(get_threads() - 1 if need is None else need, 1)
-    if _POOL is None or _POOL[0] != os.getpid() or (_POOL[1] is not None and _POOL[2] < need and not _POOL[3]):
-        # an older, smaller pool is dropped, not shut down: a caller may still be submitting to it
-        pool, m = _started_pool(need)
-        _POOL = (os.getpid(), pool, m, m < need)  # the last: fewer could start, do not try again
-    return _POOL[1]
+    with _POOL_LOCK:
+        if _POOL is None or _POOL[0] != os.getpid() or (_POOL[1] is not None and _POOL[2] < need and not _POOL[3]):
+            # an older, smaller pool is dropped, not shut down: a caller may still be submitting to it
+            pool, m = _started_pool(need)
+            _POOL = (os.getpid(), pool, m, m < need)  # the last: fewer could start, do not try again
+        return _POOL[1], _POOL[2]
 
 
 def _started_pool(m):
@@ -222,10 +239,10 @@ def run(fn, items, threads=None):
     def group(g):
         return [fn(*item) for item in items[cuts[g]:cuts[g + 1]]]
 
-    pool = _pool(t - 1)
+    pool, size = _pool_and_size(t - 1)
     if pool is None:
         return [fn(*item) for item in items]
-    t = min(t, _POOL[2] + 1)
+    t = min(t, size + 1)
     cuts = [round(i * len(items) / t) for i in range(t + 1)]
     futures = [pool.submit(group, g) for g in range(1, t)]
     error, out = None, []
@@ -257,8 +274,9 @@ def background(fn, *args):
     """
     from concurrent.futures import Future
 
-    if get_threads() > 1 and not threading.current_thread().name.startswith(_PREFIX) and _pool() is not None:
-        return _pool().submit(fn, *args)
+    pool = _pool() if get_threads() > 1 and not threading.current_thread().name.startswith(_PREFIX) else None
+    if pool is not None:
+        return pool.submit(fn, *args)
     done = Future()
     try:
         done.set_result(fn(*args))

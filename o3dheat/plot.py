@@ -335,13 +335,15 @@ def _parts(n, F):
 
 
 def _flat_parts(f, parts):
-    """(p,) bool: the parts on which ``f`` is constant up to ``FLAT_RTOL`` times its largest magnitude."""
+    """(p,) bool: the parts on which ``f`` varies by at most ``FLAT_RTOL`` times its variation over
+    the whole mesh (an offset such as a georeferenced coordinate flattens nothing; one part is flat
+    only when exactly constant)."""
     k = int(parts.max()) + 1 if len(parts) else 0
     used = parts >= 0
     lo, hi = np.full(k, np.inf), np.full(k, -np.inf)
     np.minimum.at(lo, parts[used], f[used])
     np.maximum.at(hi, parts[used], f[used])
-    scale = float(np.abs(f[used]).max()) if used.any() else 0.0
+    scale = float(np.ptp(f[used])) if used.any() else 0.0
     return hi - lo <= FLAT_RTOL * scale
 
 

@@ -227,9 +227,19 @@ def _check_loaded(s, path):
     for name, a in (("eigenvalues", lam), ("residuals", s.residuals), ("areas", s.areas)):
         if a.shape != ((k,) if name != "areas" else (n,)):
             raise MeshError(f"{path}: {name} has shape {a.shape}")
-    if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(X)) and np.all(np.isfinite(L.data))
-            and np.all(np.isfinite(B.data))):
+    bound = s.inverse_mass_bound
+    if bound is not None and np.shape(bound) != (n,):
+        raise MeshError(f"{path}: inverse_mass_bound has shape {np.shape(bound)}, not ({n},)")
+    if not all(np.all(np.isfinite(a)) for a in (lam, X, L.data, B.data, s.residuals, s.areas)
+               + (() if bound is None else (bound,))):
         raise MeshError(f"{path}: non-finite values")
+    if np.any(s.areas < 0) or (bound is not None and np.any(bound < 0)):
+        raise MeshError(f"{path}: negative areas or inverse-mass bound")
+    if s.mass_kind != "given":
+        try:
+            fem.check_mass_kind(s.mass_kind)
+        except MeshError as e:
+            raise MeshError(f"{path}: {e}") from None
     if np.any(np.diff(lam) < 0) or lam[0] < 0:
         raise MeshError(f"{path}: the eigenvalues are not ascending and >= 0")
     if s.faces is not None and (s.faces.ndim != 2 or s.faces.shape[1] != 3 or s.faces.size

@@ -510,3 +510,15 @@ def test_lifetime_chart_of_many_tracks_ranks_on_a_log_axis():
     assert ax.get_yscale() == "log" and len(ax.patches) == len(tr)
     top, bottom = ax.get_ylim()[1], ax.get_ylim()[0]
     assert top < 1 < len(tr) < bottom  # rank 1 at the top
+
+
+def test_an_offset_field_is_not_taken_for_flat():
+    """Found in review: a field with a large offset (a georeferenced height, 5e6 + z) was drawn
+    flat, with no critical points: flatness is now relative to the field's variation."""
+    import open3d as o3d
+
+    from o3dheat.plot import drawn_critical_points
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
+    z = m.vertex.positions.numpy()[:, 2].astype(float)
+    assert drawn_critical_points(m, 5e6 + z).counts == o3dheat.critical_points(m, z).counts == (1, 0, 1)

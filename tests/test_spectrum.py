@@ -625,3 +625,27 @@ def test_save_and_load_give_back_the_spectrum_and_refuse_what_is_not_one(tmp_pat
         o3dheat.Spectrum.load(tmp_path / "junk.npz")
     with pytest.raises(o3dheat.MeshError, match="no such file"):
         o3dheat.Spectrum.load(tmp_path / "absent.npz")
+
+
+def test_load_refuses_out_of_range_indices_and_other_crafted_fields(tmp_path, irregular_mesh):
+    """Found in review: a mass with an index past n crashed Spectrum.load (segfault in the
+    residuals); k = 0, NaN residuals, an unknown mass kind, a bound of the wrong shape and
+    negative areas were not refused."""
+    s = o3dheat.eigensolve(irregular_mesh, k=4, cache=False)
+    p = tmp_path / "s.npz"
+    s.save(p)
+    with np.load(p) as z:
+        data = dict(z)
+    bad_idx = data["mass_indices"].copy()
+    bad_idx[3] = 10**9
+    cases = {"broken spectrum file": dict(data, mass_indices=bad_idx),
+             "non-empty vector": dict(data, eigenvalues=np.zeros(0), eigenvectors=data["eigenvectors"][:, :0]),
+             "non-finite": dict(data, residuals=np.full(4, np.nan)),
+             "unknown mass": dict(data, mass_kind=np.array("bogus")),
+             "inverse_mass_bound has shape": dict(data, inverse_mass_bound=np.ones(3)),
+             "negative areas": dict(data, areas=-data["areas"])}
+    for msg, d in cases.items():
+        q = tmp_path / "bad.npz"
+        np.savez(q, **d)
+        with pytest.raises(o3dheat.MeshError, match=msg):
+            o3dheat.Spectrum.load(q)

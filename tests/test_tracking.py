@@ -250,3 +250,21 @@ def test_chi_at_every_scale_on_genus_two():
     tr = o3dheat.track_critical_points((V, F), Ft, t)
     _check_invariants(tr, (V, F), Ft)
     assert all(tr.euler_characteristic(j) == -2 for j in range(len(t)))
+
+
+def test_lifetime_features_are_critical_points_of_the_field_with_the_truncated_kernel_too(monkeypatch):
+    """Found in review: with method="spectral" the first tracked field was the truncated kernel's
+    projection at t = 0, not the field: some features were not critical points of it."""
+    import o3dheat.filters as flt
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
+    V = m.vertex.positions.numpy().astype(float)
+    f = V[:, 2] + 0.1 * np.random.default_rng(0).standard_normal(len(V))
+    m.vertex["f"] = o3d.core.Tensor(f)
+    calls = []
+    real = o3dheat.feature_driven
+    monkeypatch.setattr(o3dheat, "feature_driven", lambda kernel, g, A, t: calls.append(np.asarray(A))
+                        or real(kernel, g, A, t))
+    flt.apply(m, "feature_approx", attribute="f", lifetime=0.01, method="spectral", k=100)
+    crit = o3dheat.critical_points(m, f)
+    assert calls and set(calls[0].tolist()) <= set(crit.minima) | set(crit.saddles) | set(crit.maxima)
