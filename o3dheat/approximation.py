@@ -132,7 +132,9 @@ class ScaleSpace:
         Whether the criterion held.
     tracks : Tracks or None
         The critical points followed across the scales (:func:`o3dheat.track_critical_points`),
-        with ``stop="tracks"``.
+        with ``stop="tracks"``. A kernel carries faces, not positions: its saddles are matched only
+        where they stay on their vertex (the stop rule reads the extrema only); for tracks with
+        moving saddles and positions, call :func:`o3dheat.track_critical_points` on the mesh.
 
     Examples
     --------

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
@@ -139,6 +140,7 @@ def _pair(mesh):
     return pair
 
 
+_NOTED_LOCK = threading.Lock()
 _NOTED: OrderedDict = OrderedDict()  # (fingerprint of the arrays, topic) -> None, newest last
 
 
@@ -165,13 +167,14 @@ def note_repair(arrays, topic, message, *args):
         if a.size:
             h.update(memoryview(a).cast("B"))
     key = (h.hexdigest(), topic)
-    if key in _NOTED:
+    with _NOTED_LOCK:  # threads of a pool or a batch note repairs at once
+        seen = key in _NOTED
+        _NOTED[key] = None
         _NOTED.move_to_end(key)
-        return
-    _NOTED[key] = None
-    while len(_NOTED) > 64:
-        _NOTED.popitem(last=False)
-    log.warning(message, *args)
+        while len(_NOTED) > 64:
+            _NOTED.popitem(last=False)
+    if not seen:
+        log.warning(message, *args)
 
 
 def check_points(P, planar=True, min_points=4, what="the point cloud"):

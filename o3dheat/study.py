@@ -93,21 +93,22 @@ def _descriptors(V, F, kernels, descriptors, k, times, axis, grid="paper", scale
         t = used[kern] = K.scales(scales, grid=grid) if times is None else times[kern]
         S = K if method == "spectral" or not smooth_only & set(descriptors) else HeatFlow((V, F), variant=kern,
                                                                                         cache=False)
+        # the smoothed height, once per kernel: a descriptor itself and the field of the topological ones
+        needs_height = {"smooth_height", "critical_points", "track_lifetime"} & set(descriptors)
+        H = S.smooth(height, t) if needs_height else None
         for d in descriptors:
             if d.startswith("hks_"):
                 out[kern, d] = K.hks(t, form=d[len("hks_"):])
             elif d == "smooth_height":
-                out[kern, d] = S.smooth(height, t)
+                out[kern, d] = H
             elif d == "smooth_curvature":
                 out[kern, d] = S.smooth(curvature, t)
             elif d == "eigenvalues":
                 out[kern, d] = K.spectrum.eigenvalues.copy()
             elif d == "critical_points":
-                H = out[kern, "smooth_height"] if (kern, "smooth_height") in out else S.smooth(height, t)
                 out[kern, d] = np.array([sum(critical_points(surface, H[:, i]).counts)
                                          for i in range(len(t))], dtype=np.float64)
             elif d == "track_lifetime":
-                H = out[kern, "smooth_height"] if (kern, "smooth_height") in out else S.smooth(height, t)
                 out[kern, d] = track_critical_points(surface, H, t)
     return out, used
 

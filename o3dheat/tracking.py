@@ -219,7 +219,9 @@ def track_critical_points(mesh, F, t, radius=None):
         Strictly increasing times (any unit: only their order and differences are used).
     radius : float, optional
         Largest distance (mesh units) a saddle moves between two scales; default 10 mean edge
-        lengths.
+        lengths. A :class:`~o3dheat.topology.Surface` made from faces alone (no positions)
+        matches a saddle only where it stays on its vertex: one that moves is a death and a birth
+        (extrema, which follow the flow, are tracked as with positions).
 
     Returns
     -------
@@ -419,8 +421,13 @@ def _match(V, keep, old, new, radius):
     """Minimum-cost matching of the saddles ``old[keep]`` to ``new`` by distance, within ``radius``:
     (positions in ``old``, positions in ``new``), in the order of ``keep``."""
     none = np.zeros(0, np.int64)
-    if not len(keep) or not len(new) or V is None:
+    if not len(keep) or not len(new):
         return none, none
+    if V is None:  # no positions: a saddle continues only on its own vertex
+        order = np.argsort(new)
+        at = np.minimum(np.searchsorted(new, old[keep], sorter=order), len(new) - 1)
+        same = new[order[at]] == old[keep]
+        return keep[same], order[at[same]].astype(np.int64)
     from scipy.optimize import linear_sum_assignment
 
     A, B = V[old[keep]], V[new]

@@ -268,3 +268,14 @@ def test_lifetime_features_are_critical_points_of_the_field_with_the_truncated_k
     flt.apply(m, "feature_approx", attribute="f", lifetime=0.01, method="spectral", k=100)
     crit = o3dheat.critical_points(m, f)
     assert calls and set(calls[0].tolist()) <= set(crit.minima) | set(crit.saddles) | set(crit.maxima)
+
+
+def test_without_positions_a_saddle_on_its_vertex_continues():
+    """A Surface of faces alone (scale_space's tracks): saddles that stay on their vertex are one
+    track, not a death and a birth at every scale."""
+    m = o3d.t.geometry.TriangleMesh.create_torus(radial_resolution=40, tubular_resolution=20)
+    x = m.vertex.positions.numpy()[:, 0]
+    F = m.triangle.indices.numpy()
+    S = o3dheat.topology.Surface.from_faces(len(x), F)
+    tr = o3dheat.track_critical_points(S, np.c_[x, 2 * x, 3 * x], [0.0, 0.1, 0.2])
+    assert len(tr) == 4 and not tr.events
