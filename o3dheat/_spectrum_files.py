@@ -1,6 +1,6 @@
 """Spectra on disk: the signed entries of the spectrum cache, and the self-contained ``.npz`` files
 of :meth:`o3dheat.Spectrum.save` (entry points: :func:`cache_load`, :func:`cache_save`,
-:func:`prune`, :func:`write_npz`).
+:func:`prune`; written with :func:`o3dheat.io.atomic_write`).
 
 Only o3dheat's own writes are read back from a cache folder: every entry carries a keyed BLAKE2b
 signature of its name and arrays, made with a secret kept in the folder (``.o3dheat-key``, 32
@@ -25,11 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import MeshError
+from .io import atomic_write
+
 log = logging.getLogger("o3dheat")
 
 KEY_FILE = ".o3dheat-key"
 ENTRY = re.compile(r"spectrum-[0-9a-f]{32}\.npz")
-PARTIAL = re.compile(r"spectrum-[A-Za-z0-9_]+\.npz\.tmp")  # tempfile.mkstemp's names
+PARTIAL = re.compile(r"spectrum-[A-Za-z0-9_]+\.npz\.tmp")  # older versions' temporary files
 
 
 def entry_path(folder, key):
@@ -88,10 +91,6 @@ def cache_load(folder, key):
     if not path.exists():
         return None
     try:
-        os.utime(path)  # used now: the last to be pruned
-    except OSError:
-        pass
-    try:
         with np.load(path, allow_pickle=False) as z:
             arrays = {name: z[name] for name in z.files}
     except Exception as e:  # a corrupt cache file is ignored, never fatal
@@ -104,22 +103,11 @@ def cache_load(folder, key):
         log.warning("the cached spectrum %s is not o3dheat's own write for this key (tampered or corrupt: "
                     "its signature does not match): recomputing", path.name)
         return None
-    return arrays
-
-
-def write_npz(path, arrays):
-    """Write ``arrays`` as an uncompressed ``.npz`` at ``path`` atomically (a temporary file in the
-    same folder, then renamed): a reader never sees a partial file."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem.split("-")[0] + "-", suffix=".npz.tmp")
     try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **arrays)
-        os.replace(tmp, path)
-        tmp = None
-    finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
+        os.utime(path)  # used now, and ours: the last to be pruned
+    except OSError:
+        pass
+    return arrays
 
 
 def cache_save(folder, key, arrays, budget):
@@ -131,9 +119,10 @@ def cache_save(folder, key, arrays, budget):
         secret = folder_key(folder, create=True)
         if secret is None:
             raise OSError(f"no readable key {KEY_FILE}")
-        write_npz(entry_path(folder, key), {**arrays, "signature": signature(secret, key, arrays)})
+        signed = {**arrays, "signature": signature(secret, key, arrays)}
+        atomic_write(entry_path(folder, key), lambda fh: np.savez(fh, **signed))
         prune(folder, budget, keep=entry_path(folder, key))
-    except OSError as e:
+    except (OSError, MeshError) as e:  # atomic_write names an unwritable folder with a MeshError
         log.warning("could not write the spectrum cache in %s (%s)", folder, e)
 
 
@@ -207,8 +196,6 @@ def read_spectrum(path):
     """The fields of a :class:`o3dheat.Spectrum` from a :meth:`~o3dheat.Spectrum.save` file,
     unchecked (the caller checks them); a MeshError when the file is not one."""
     import scipy.sparse as sp
-
-    from .errors import MeshError
 
     path = Path(path)
     try:

@@ -698,7 +698,7 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         sigma = sigma * u * u
     t_asm = time.perf_counter() - t0
     cached = _cache_load(cache_dir, key) if key else None
-    if cached is not None and not _cache_valid(cached, L, B, k, tol):
+    if cached is not None and not _cache_valid(cached, L.shape[0], k):
         log.warning("the cached spectrum %s does not solve this eigenproblem (tampered or corrupt): "
                     "recomputing", key)
         cached = None
@@ -823,17 +823,17 @@ def _canonical_bases(lam, X, B, scale, rel=1e-9):
     pseudo-random block. Any B-orthonormal basis ``X_c Q`` of the same space gives the same result
     (to rounding): ``polar(Qᵀ M) = Qᵀ polar(M)``. Four concurrent dense eigensolves (threads
     change the BLAS's rounding) rotated the sphere's multiple eigenvectors arbitrarily before."""
-    k = len(lam)
-    i = 0
-    while i < k:
-        j = i + 1
-        while j < k and lam[j] - lam[j - 1] <= rel * max(abs(lam[j]), scale):
-            j += 1
+    lam = np.asarray(lam)
+    tied = np.diff(lam) <= rel * np.maximum(np.abs(lam[1:]), scale)  # tied[i]: λ_i and λ_{i+1} one cluster
+    if not tied.any():  # simple eigenvalues only: nothing to do (no copy, no conversion)
+        return X
+    B = sp.csr_matrix(B)
+    starts = np.flatnonzero(np.r_[True, ~tied])
+    for i, j in zip(starts, np.r_[starts[1:], len(lam)], strict=True):
         if j - i > 1:
             G = np.random.default_rng(20261201 + j - i).standard_normal((X.shape[0], j - i))
             U, _, Vt = np.linalg.svd(X[:, i:j].T @ (B @ G))
             X[:, i:j] = X[:, i:j] @ (U @ Vt)
-        i = j
     return X
 
 
@@ -871,7 +871,7 @@ def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
     X = _fix_signs(X)  # in the caller's numbering: "first entry on ties" is well defined there
     # after the signs: a multiple eigenvalue's canonical basis has its own signs (the polar factor
     # is unique), where "largest entry" ties to rounding on a symmetric mesh
-    X = _canonical_bases(lam, np.asfortranarray(X), sp.csr_matrix(B_in), _weyl_gap(B_in))
+    X = _canonical_bases(lam, X, B_in, _weyl_gap(B_in))
     t_sol += t_perm + time.perf_counter() - t0
     return lam, X, used, s, res, {"factorize": t_fac, "solve": t_sol, "cache": False}
 
@@ -928,9 +928,8 @@ def _check_method(method):
 
 def _check_settings(tol, seed, block):
     """The solver settings, checked: tol in (0, 1), seed an integer >= 0, block from 1 to 256."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise MeshError(f"seed must be an integer >= 0, got {seed!r}")
-    return checks.tolerance(tol), int(seed), checks.count(block, "block", 1, 256)
+    seed = checks.count(seed, "seed", minimum=0, maximum=2**63 - 1)
+    return checks.tolerance(tol), seed, checks.count(block, "block", 1, 256)
 
 
 def _check_k(k):
@@ -953,12 +952,11 @@ def _cache_load(folder, key):
         return None
 
 
-def _cache_valid(cached, L, B, k, tol):
+def _cache_valid(cached, r, k):
     """A signed entry (o3dheat's own write, :mod:`o3dheat._spectrum_files`) is used if it has the
     shapes of this problem, finite values and ascending eigenvalues (O(n k)): its residuals were
     checked when it was computed."""
     lam, X, _, _, res = cached
-    r = L.shape[0]
     if lam.shape != (k,) or X.shape != (r, k) or lam.dtype != np.float64 or X.dtype != np.float64:
         return False
     return bool(np.all(np.isfinite(lam)) and np.all(np.isfinite(X)) and np.all(np.diff(lam) >= 0)
