@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from o3dheat import topology
 from o3dheat.errors import MeshError
 from o3dheat.filters import check_column, need_attribute, param
 from o3dheat.kernel import mass_of
@@ -25,7 +26,7 @@ from ._common import (
 )
 
 #: the codes of ``<attribute>_track_kind``, as ``critical_points``' labels (0 is regular)
-KIND_CODES = {"minimum": 1, "saddle": 2, "maximum": 3}
+KIND_CODES = {"minimum": topology.MINIMUM, "saddle": topology.SADDLE, "maximum": topology.MAXIMUM}
 
 
 @dataclass(frozen=True)

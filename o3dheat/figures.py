@@ -265,7 +265,7 @@ def _track_entries(V, F, f, out, name, up, t_max=None, count=TRACK_SCALES, longe
         Ft[:, j] = plot._flattened(Ft[:, j], parts, flat[:, j])
     tr = track_critical_points((V, F), Ft, t)
     born_flat = flat[parts[tr.vertex[np.arange(len(tr)), tr.first]], tr.first]
-    tr = _tracks_subset(tr, ~born_flat)
+    tr = tr.subset(~born_flat)
     flat = int(flat.any(axis=1).sum())
     n_scales = tr.last - tr.first + 1
     alive = int((tr.last == len(t) - 1).sum())
@@ -288,20 +288,6 @@ def _track_entries(V, F, f, out, name, up, t_max=None, count=TRACK_SCALES, longe
                                   f"{plot.FLAT_RTOL:g} of its largest magnitude, and is taken as constant "
                                   "there) are left out: critical points of the vertices' order, not of the field"
                                   if born_flat.any() else ""))]
-
-
-def _tracks_subset(tr, keep):
-    """The tracks ``keep`` (a mask) of ``tr`` (fresh from the tracking: their persistence is still to
-    be computed, from the subset's vertices), the events among them renumbered."""
-    import dataclasses
-
-    keep = np.asarray(keep, bool)
-    if keep.all():
-        return tr
-    new = np.cumsum(keep) - 1
-    events = [dict(e, tracks=[int(new[i]) for i in e["tracks"]]) for e in tr.events if keep[list(e["tracks"])].all()]
-    return dataclasses.replace(tr, kind=tr.kind[keep], vertex=tr.vertex[keep], multiplicity=tr.multiplicity[keep],
-                               events=events)
 
 
 def track_figures(mesh, out, field=None, noise=0.1, seed=0, name="mesh", max_faces=30000, up="z",

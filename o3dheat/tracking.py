@@ -189,6 +189,31 @@ class Tracks:
         keep = (self.first == 0) & (self.last >= scale)
         return np.unique(self.vertex[keep, 0])
 
+    def subset(self, keep):
+        """The tracks ``keep`` (a (p,) bool mask), the events among them renumbered (a persistence
+        not yet computed is computed from the subset's vertices; one computed already is sliced).
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d, o3dheat
+        >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+        >>> x = m.vertex.positions.numpy()[:, 0]
+        >>> tr = o3dheat.track_critical_points(m, np.c_[x, 2 * x], [0.0, 0.1])
+        >>> tr.subset(tr.kind != "saddle").kind.tolist()
+        ['minimum', 'maximum']
+        """
+        import dataclasses
+
+        keep = np.asarray(keep, bool)
+        if keep.all():
+            return self
+        new = np.cumsum(keep) - 1
+        events = [dict(e, tracks=[int(new[i]) for i in e["tracks"]]) for e in self.events
+                  if keep[list(e["tracks"])].all()]
+        pers = None if self._persistence is None else self._persistence[keep]
+        return dataclasses.replace(self, kind=self.kind[keep], vertex=self.vertex[keep],
+                                   multiplicity=self.multiplicity[keep], events=events, _persistence=pers)
+
     def euler_characteristic(self, scale):
         """``M − s + m`` of the living tracks at ``scale`` (saddles with their multiplicity).
 
