@@ -1,7 +1,7 @@
 """What every built-in filter shares: the working copy of the input, its attributes, its spectrum.
 
 Meshes: the filter works on the mesh itself. Point clouds: ``operators="reconstruct"`` builds a
-surface through the points (:func:`o3dheat.sampling.reconstruct`, Poisson), moves input fields to
+surface through the points (:func:`o3dheat.geometry.sampling.reconstruct`, Poisson), moves input fields to
 its vertices (nearest point), computes there and brings results back to the points by
 barycentric interpolation at the closest surface point; ``operators="robust"`` uses
 robust-laplacian's point-cloud Laplacian and lumped mass on the points directly (no surface, so
@@ -15,17 +15,17 @@ from typing import Annotated, Literal
 
 import numpy as np
 
-from o3dheat import heatflow, kernel
 from o3dheat.errors import MeshError
-from o3dheat.filters import OneOf, check_parameters, param
-from o3dheat.mesh import as_arrays, check_points, mesh_of
+from o3dheat.geometry.mesh import as_arrays, check_points, mesh_of
+from o3dheat.pipelines.filters import OneOf, check_parameters, param
+from o3dheat.spectral import heatflow, kernel
 
 log = logging.getLogger("o3dheat")
 
 #: how point clouds get operators (``operators=`` of the filters)
 OPERATORS = ("reconstruct", "robust")
 #: parameter types shared by the filters, from the kernel module's single definitions; the variants
-#: are read when a value is checked, so that a variant added to o3dheat.kernel.VARIANTS (even at
+#: are read when a value is checked, so that a variant added to o3dheat.spectral.kernel.VARIANTS (even at
 #: run time) is accepted by every filter at once
 Variant = Annotated[str, OneOf(lambda: kernel.VARIANTS)]
 Grid = Literal[kernel.GRIDS]
@@ -34,9 +34,9 @@ Normalization = Literal[kernel.NORMALIZATIONS]
 Operators = Literal[OPERATORS]
 Method = Literal[heatflow.METHODS]
 
-#: the bounds of the parameters several filters share (:func:`o3dheat.filters.param`), declared once:
+#: the bounds of the parameters several filters share (:func:`o3dheat.pipelines.filters.param`), declared once:
 #: ``k: int = eigenpairs()`` ...
-MAX_SCALES = 100_000  # as o3dheat.kernel's scales
+MAX_SCALES = 100_000  # as o3dheat.spectral.kernel's scales
 
 
 def eigenpairs(default=100):
@@ -114,7 +114,7 @@ def fraction():
 
 def checked(step):
     """At construction (``__post_init__``): every parameter of a built-in filter checked against its
-    type and bounds (:func:`o3dheat.filters.check_parameters`) and stored converted, so that a
+    type and bounds (:func:`o3dheat.pipelines.filters.check_parameters`) and stored converted, so that a
     filter made directly is refused as one made by name, before any work.
 
     Examples
@@ -136,14 +136,14 @@ class Site:
     Parameters
     ----------
     geometry : Open3D TriangleMesh or PointCloud (legacy or tensor), (V, F) pair or mesh-like
-        A mesh-like (:func:`o3dheat.mesh.mesh_of`: a Repaired, a Resampled) stands for its mesh.
+        A mesh-like (:func:`o3dheat.geometry.mesh.mesh_of`: a Repaired, a Resampled) stands for its mesh.
     operators : str
         One of :data:`OPERATORS`: how a point cloud gets its operators.
     step : filter or None
         The filter about to run: its plan and outputs are checked on the geometry's attributes
-        now, before any work (:func:`o3dheat.filters.check_step`, as :meth:`~o3dheat.filters.Chain.check`
+        now, before any work (:func:`o3dheat.pipelines.filters.check_step`, as :meth:`~o3dheat.pipelines.filters.Chain.check`
         does for a chain), so that a filter called directly or by
-        :func:`~o3dheat.filters.apply` refuses what it cannot write before computing it.
+        :func:`~o3dheat.pipelines.filters.apply` refuses what it cannot write before computing it.
 
     Examples
     --------
@@ -187,7 +187,7 @@ class Site:
             raise MeshError("a filter takes an Open3D TriangleMesh or PointCloud, a (V, F) pair or a mesh-like "
                             f"(an object with a .mesh, e.g. a Repaired or a Resampled), got {type(geometry).__name__}")
         if step is not None:
-            from o3dheat.filters import attribute_columns, check_step
+            from o3dheat.pipelines.filters import attribute_columns, check_step
 
             check_step(step, attribute_columns(self.out))
         self.P = self.attrs.positions.numpy().astype(np.float64)
@@ -209,7 +209,7 @@ class Site:
 
     def attribute(self, name, column=None):
         """A vertex attribute as float64 (n,) or (n, c) (trailing axes flattened row-major);
-        ``column`` picks one column (:func:`o3dheat.filters.one_column`).
+        ``column`` picks one column (:func:`o3dheat.pipelines.filters.one_column`).
 
         Examples
         --------
@@ -219,7 +219,7 @@ class Site:
         >>> site.attribute("positions").shape, site.attribute("positions", column=2).shape
         ((114, 3), (114,))
         """
-        from o3dheat.filters import need_attribute, one_column
+        from o3dheat.pipelines.filters import need_attribute, one_column
 
         need_attribute(dict.fromkeys(self.names()), name)
         a = self.attrs[name].numpy()
@@ -233,7 +233,7 @@ class Site:
         return a
 
     def scalar(self, name, column=None):
-        """One column of an attribute, (n,), by the filters' rule (:func:`o3dheat.filters.one_column`):
+        """One column of an attribute, (n,), by the filters' rule (:func:`o3dheat.pipelines.filters.one_column`):
         a multi-column attribute without ``column`` is refused, listing its columns.
 
         Examples
@@ -244,7 +244,7 @@ class Site:
         >>> site.scalar("positions", column=-1).shape
         (114,)
         """
-        from o3dheat.filters import one_column
+        from o3dheat.pipelines.filters import one_column
 
         a = self.attribute(name, column)
         return a if column is not None else one_column(a, name)
@@ -280,7 +280,7 @@ class Site:
         values = np.ascontiguousarray(values)
         if len(values) != self.n:  # pragma: no cover - a filter bug
             raise AssertionError(f"{name}: {len(values)} rows for {self.n} vertices")
-        from o3dheat.filters import attribute_columns, check_writable
+        from o3dheat.pipelines.filters import attribute_columns, check_writable
 
         check_writable(name, values.shape[1:], attribute_columns(self.out))
         self.attrs[name] = self.o3d.core.Tensor(values)
@@ -336,7 +336,7 @@ class Site:
         """
         if self.is_mesh or self.operators == "robust":
             return f
-        from o3dheat.sampling import nearest
+        from o3dheat.geometry.sampling import nearest
 
         return nearest(f, self.P, self.surface()[0])
 
@@ -353,7 +353,7 @@ class Site:
         """
         if self.is_mesh or self.operators == "robust":
             return g
-        from o3dheat.sampling import transfer
+        from o3dheat.geometry.sampling import transfer
 
         V, F = self.surface()
         g = np.asarray(g)
@@ -362,8 +362,8 @@ class Site:
         return out.reshape((self.n,) + g.shape[1:])
 
     def spectrum(self, k=100, mass="consistent", cache=None):
-        """The spectrum of the surface with the mass ``mass`` (:data:`o3dheat.fem.MASS_KINDS`),
-        shared by the filters (:func:`o3dheat.filters.shared_spectrum`); robust-laplacian's for
+        """The spectrum of the surface with the mass ``mass`` (:data:`o3dheat.spectral.fem.MASS_KINDS`),
+        shared by the filters (:func:`o3dheat.pipelines.filters.shared_spectrum`); robust-laplacian's for
         point clouds with ``operators="robust"``. A ``k`` larger than the surface allows (its
         vertices; the points less 2 for robust-laplacian's) is capped, with a warning on the
         ``o3dheat`` logger naming the ``k`` asked for and the ``k`` used.
@@ -377,7 +377,7 @@ class Site:
         >>> s.k, s.mass_kind
         (5, 'lumped')
         """
-        from o3dheat.filters import shared_spectrum
+        from o3dheat.pipelines.filters import shared_spectrum
 
         if not self.is_mesh and self.operators == "robust":
             s = _robust_spectrum(self.P, k)
@@ -396,8 +396,8 @@ def _reconstruction(site):
     Poisson solve per step, and its repairs were reported at every step)."""
     import hashlib
 
-    from o3dheat.sampling import reconstruct
-    from o3dheat.spectrum import memoized
+    from o3dheat.geometry.sampling import reconstruct
+    from o3dheat.spectral.spectrum import memoized
 
     check_points(site.P, planar=False)
     h = hashlib.sha256(np.ascontiguousarray(site.P).tobytes())
@@ -419,7 +419,7 @@ def _robust_operators(P):
 def _robust_spectrum(P, k):
     import hashlib
 
-    from o3dheat.spectrum import eigensolve_operators, memoized
+    from o3dheat.spectral.spectrum import eigensolve_operators, memoized
 
     def compute():
         L, M = _robust_operators(P)
@@ -430,7 +430,7 @@ def _robust_spectrum(P, k):
 
 
 def kernel_of(site, k, variant="weighted", normalize=None):
-    """The heat kernel ``variant`` (:data:`o3dheat.kernel.VARIANTS`) on the site's own spectrum
+    """The heat kernel ``variant`` (:data:`o3dheat.spectral.kernel.VARIANTS`) on the site's own spectrum
     of that variant's mass; point clouds with ``operators="robust"`` have robust-laplacian's
     mass only ("weighted").
 
@@ -478,7 +478,7 @@ def flow_of(site, variant="weighted", normalize=None, tol=1e-8):
 
 def smoother(site, method, k, variant="weighted", normalize=None, tol=1e-8):
     """What computes ``Φ_t`` for a filter: the spectral kernel (:func:`kernel_of`) or the full one
-    (:func:`flow_of`, to ``tol``), by ``method`` (:data:`o3dheat.heatflow.METHODS`); either has
+    (:func:`flow_of`, to ``tol``), by ``method`` (:data:`o3dheat.spectral.heatflow.METHODS`); either has
     ``smooth(f, t)``.
 
     Examples

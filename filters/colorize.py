@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.filters import check_column, need_attribute, param
+from o3dheat.pipelines.filters import check_column, need_attribute, param
 
 from ._common import Site, checked
 
@@ -44,7 +44,7 @@ class Colorize:
 
     Examples
     --------
-    >>> import open3d as o3d, o3dheat.filters as flt
+    >>> import open3d as o3d, o3dheat.pipelines.filters as flt
     >>> m = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10), "scalar", kind="height")
     >>> flt.apply(m, "colorize", attribute="height").vertex["colors"].shape
     SizeVector[182, 3]
@@ -67,11 +67,11 @@ class Colorize:
             raise MeshError(f"range must be two increasing numbers, got {self.range}")
 
     def plan(self, columns):
-        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples
         --------
-        >>> import o3dheat.filters as flt
+        >>> import o3dheat.pipelines.filters as flt
         >>> flt.get("colorize", attribute="hks", column=-1).plan({"positions": 3, "hks": 10})
         {'colors': 3}
         """

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.filters import check_column, need_attribute
+from o3dheat.pipelines.filters import check_column, need_attribute
 
 from ._common import Operators, Site, checked, fraction, persistence
 
@@ -38,7 +38,7 @@ class CriticalPointsFilter:
 
     Examples
     --------
-    >>> import numpy as np, open3d as o3d, o3dheat.filters as flt
+    >>> import numpy as np, open3d as o3d, o3dheat.pipelines.filters as flt
     >>> m = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20), "scalar", kind="height")
     >>> np.bincount(flt.apply(m, "critical_points", attribute="height").vertex["height_critical"].numpy())
     array([760,   1,   0,   1])
@@ -59,11 +59,11 @@ class CriticalPointsFilter:
             raise MeshError("give delta or keep_fraction, not both")
 
     def plan(self, columns):
-        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples
         --------
-        >>> import o3dheat.filters as flt
+        >>> import o3dheat.pipelines.filters as flt
         >>> flt.get("critical_points", attribute="height").plan({"positions": 3, "height": 1})
         {'height_critical': 1}
         """
@@ -99,7 +99,7 @@ class CriticalPointsFilter:
                 mask = mask[S.representative]
             kind[~mask] = 0
         if not site.is_mesh:  # each surface label goes to its nearest point
-            from o3dheat.sampling import nearest
+            from o3dheat.geometry.sampling import nearest
 
             out = np.zeros(site.n, np.int8)
             crit = np.flatnonzero(kind)

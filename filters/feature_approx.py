@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.filters import check_column, need_attribute, param
-from o3dheat.kernel import mass_of
+from o3dheat.pipelines.filters import check_column, need_attribute, param
+from o3dheat.spectral.kernel import mass_of
 
 from ._common import (
     Method,
@@ -53,13 +53,13 @@ class FeatureApprox:
         (:func:`o3dheat.track_critical_points` over 40 log-spaced times up to it, with the
         filter's method and variant; :meth:`o3dheat.Tracks.features`).
     variant : str
-        The kernel, a key of :data:`o3dheat.kernel.VARIANTS` (each on the spectrum of its own mass;
+        The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
     k : int
         Eigenpairs of the spectral method (>= 1; capped at what the mesh has, with a warning); with
         "exact" they only place the default scale.
     method : str
-        One of :data:`o3dheat.heatflow.METHODS`: "spectral" (the paper's truncated kernel, the
+        One of :data:`o3dheat.spectral.heatflow.METHODS`: "spectral" (the paper's truncated kernel, the
         default) or "exact" (the full kernel, to ``tol``); see the ``heat_smooth`` filter.
     tol : float
         Relative W-norm error of the exact method, in (0, 1).
@@ -68,7 +68,7 @@ class FeatureApprox:
 
     Examples
     --------
-    >>> import numpy as np, open3d as o3d, o3dheat.filters as flt
+    >>> import numpy as np, open3d as o3d, o3dheat.pipelines.filters as flt
     >>> m = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20), "scalar", kind="height")
     >>> out = flt.apply(m, "feature_approx", attribute="height", k=30, keep_fraction=0.5)
     >>> g, l = out.vertex["height_glob"].numpy(), out.vertex["height_loc"].numpy()
@@ -95,14 +95,14 @@ class FeatureApprox:
         checked(self)
         if sum(x is not None for x in (self.delta, self.keep_fraction, self.lifetime)) > 1:
             raise MeshError("give one of delta, keep_fraction and lifetime")
-        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.kernel.VARIANTS
 
     def plan(self, columns):
-        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples
         --------
-        >>> import o3dheat.filters as flt
+        >>> import o3dheat.pipelines.filters as flt
         >>> flt.get("feature_approx", attribute="height").plan({"positions": 3, "height": 1})
         {'height_glob': 1, 'height_loc': 1}
         """

@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from o3dheat.errors import MeshError
-from o3dheat.filters import check_column, need_attribute
-from o3dheat.kernel import mass_of
+from o3dheat.pipelines.filters import check_column, need_attribute
+from o3dheat.spectral.kernel import mass_of
 
 from ._common import (
     Grid,
@@ -48,19 +48,19 @@ class HeatSmooth:
     scales : int
         Number of scales of ``grid`` when ``times`` is not given (1 to 100000).
     grid : str
-        One of :data:`o3dheat.kernel.GRIDS`. "paper": ``t_i = (i / scales) / λ_k``; "log": from
+        One of :data:`o3dheat.spectral.kernel.GRIDS`. "paper": ``t_i = (i / scales) / λ_k``; "log": from
         ``1/λ_k`` to ``2 ln(100)/λ_2`` (the whole range, to nearly constant). See
         :meth:`o3dheat.HeatKernel.scales`.
     variant : str
-        The kernel, a key of :data:`o3dheat.kernel.VARIANTS` (each on the spectrum of its own mass;
+        The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
     normalize : None or str
-        One of :data:`o3dheat.kernel.NORMALIZATIONS`; "lambda2": the scale-invariant kernel.
+        One of :data:`o3dheat.spectral.kernel.NORMALIZATIONS`; "lambda2": the scale-invariant kernel.
     k : int
         Eigenpairs of the spectral method (>= 1; capped at what the mesh has, with a warning); with
         "exact" they only place the default scales.
     method : str
-        One of :data:`o3dheat.heatflow.METHODS`. "spectral" (the default, the paper's
+        One of :data:`o3dheat.spectral.heatflow.METHODS`. "spectral" (the default, the paper's
         computation): the truncated kernel on k eigenpairs, which is band-limited, so that ``k``
         smooths too (at the paper's scales more than ``t`` does). "exact": the full kernel
         (:class:`o3dheat.HeatFlow`), to ``tol``: ``t`` alone smooths. Without ``times`` the scales
@@ -75,7 +75,7 @@ class HeatSmooth:
 
     Examples
     --------
-    >>> import open3d as o3d, o3dheat.filters as flt
+    >>> import open3d as o3d, o3dheat.pipelines.filters as flt
     >>> m = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20), "scalar", kind="height")
     >>> flt.apply(m, "heat_smooth", attribute="height", k=30).vertex["height_smooth"].shape
     SizeVector[762, 10]
@@ -101,7 +101,7 @@ class HeatSmooth:
 
     def __post_init__(self):
         checked(self)
-        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.kernel.VARIANTS
 
     def _columns_out(self, c):
         """Columns of the output for an input of ``c`` columns (after ``column``); the refusal of
@@ -114,11 +114,11 @@ class HeatSmooth:
         return count if count > 1 else c
 
     def plan(self, columns):
-        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples
         --------
-        >>> import o3dheat.filters as flt
+        >>> import o3dheat.pipelines.filters as flt
         >>> flt.get("heat_smooth", attribute="positions", column=2, scales=5).plan({"positions": 3})
         {'positions_smooth': 5}
         """

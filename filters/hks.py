@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from o3dheat.kernel import HKS_DEFAULT, mass_of
+from o3dheat.spectral.kernel import HKS_DEFAULT, mass_of
 
 from ._common import (
     Grid,
@@ -32,19 +32,19 @@ class Hks:
     scales : int
         Number of scales of ``grid`` when ``times`` is not given (1 to 100000).
     grid : str
-        The scale grid, one of :data:`o3dheat.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales`).
+        The scale grid, one of :data:`o3dheat.spectral.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales`).
     times : list of float or None
         Times (paper convention ``exp(−λ t / 2)``), at least one, each >= 0; None: ``scales``
         times of ``grid``.
     form : str
-        One of :data:`o3dheat.kernel.HKS_FORMS`: "density" (the default everywhere,
-        :data:`o3dheat.kernel.HKS_DEFAULT`): ``Σ e^{−λt/2} x(i)²`` (the usual HKS, stable across
+        One of :data:`o3dheat.spectral.kernel.HKS_FORMS`: "density" (the default everywhere,
+        :data:`o3dheat.spectral.kernel.HKS_DEFAULT`): ``Σ e^{−λt/2} x(i)²`` (the usual HKS, stable across
         samplings); "paper": the kernel diagonal ``Σ e^{−λt/2} x(i) (W x)(i)``.
     variant : str
-        The kernel, a key of :data:`o3dheat.kernel.VARIANTS` (each on the spectrum of its own mass;
+        The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
     normalize : None or str
-        One of :data:`o3dheat.kernel.NORMALIZATIONS`; "lambda2": scale-invariant eigenvalues.
+        One of :data:`o3dheat.spectral.kernel.NORMALIZATIONS`; "lambda2": scale-invariant eigenvalues.
     k : int
         Eigenpairs (>= 1; capped at what the mesh has, with a warning).
     output : str
@@ -54,7 +54,7 @@ class Hks:
 
     Examples
     --------
-    >>> import open3d as o3d, o3dheat.filters as flt
+    >>> import open3d as o3d, o3dheat.pipelines.filters as flt
     >>> out = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10), "hks", k=20, scales=4)
     >>> out.vertex["hks"].shape
     SizeVector[182, 4]
@@ -74,14 +74,14 @@ class Hks:
 
     def __post_init__(self):
         checked(self)
-        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.kernel.VARIANTS
 
     def plan(self, columns):
-        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples
         --------
-        >>> import o3dheat.filters as flt
+        >>> import o3dheat.pipelines.filters as flt
         >>> flt.get("hks", scales=4).plan({"positions": 3})
         {'hks': 4}
         """

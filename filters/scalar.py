@@ -8,7 +8,7 @@ from typing import Literal
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.filters import need_attribute, param
+from o3dheat.pipelines.filters import need_attribute, param
 
 from ._common import Operators, Site, checked
 
@@ -39,7 +39,7 @@ class Scalar:
 
     Examples
     --------
-    >>> import open3d as o3d, o3dheat.filters as flt
+    >>> import open3d as o3d, o3dheat.pipelines.filters as flt
     >>> out = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20), "scalar", kind="gaussian_curvature")
     >>> round(float(out.vertex["gaussian_curvature"].numpy().mean()), 1)
     1.0
@@ -61,11 +61,11 @@ class Scalar:
             raise MeshError("kind='noise' needs attribute= (the field to perturb)")
 
     def plan(self, columns):
-        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples
         --------
-        >>> import o3dheat.filters as flt
+        >>> import o3dheat.pipelines.filters as flt
         >>> flt.get("scalar", kind="noise", attribute="positions").plan({"positions": 3})
         {'positions_noisy': 3}
         """
@@ -96,8 +96,8 @@ class Scalar:
             span = float(np.ptp(f)) if f.size else 0.0
             values, name = f + self.sigma * (span or 1.0) * rng.standard_normal(f.shape), f"{self.attribute}_noisy"
         else:
-            from o3dheat import fem
-            from o3dheat.mesh import prepare
+            from o3dheat.geometry.mesh import prepare
+            from o3dheat.spectral import fem
 
             if site.operators == "robust" and not site.is_mesh:
                 raise MeshError(f"{self.kind} needs a surface: use operators='reconstruct' for point clouds")

@@ -8,8 +8,8 @@ import numpy as np
 
 from o3dheat import topology
 from o3dheat.errors import MeshError
-from o3dheat.filters import check_column, need_attribute, param
-from o3dheat.kernel import mass_of
+from o3dheat.pipelines.filters import check_column, need_attribute, param
+from o3dheat.spectral.kernel import mass_of
 
 from ._common import (
     Method,
@@ -67,14 +67,14 @@ class TracksFilter:
         default 40: a step of about 1.24x in time for 100 eigenpairs on a sphere, fine enough for the
         matching of :func:`o3dheat.track_critical_points`).
     variant : str
-        The kernel, a key of :data:`o3dheat.kernel.VARIANTS` (each on the spectrum of its own mass;
+        The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
     k : int
         Eigenpairs (>= 1; capped at what the mesh has, with a warning): with "exact" they only
         place the default times (give ``times`` to skip the eigensolve); with "spectral" they are
         the kernel's.
     method : str
-        One of :data:`o3dheat.heatflow.METHODS`. "exact" (the default, unlike ``heat_smooth``):
+        One of :data:`o3dheat.spectral.heatflow.METHODS`. "exact" (the default, unlike ``heat_smooth``):
         the full kernel (:class:`o3dheat.HeatFlow`), to ``tol``. Tracking needs many scales, from
         small times where the truncated kernel is ``k``'s band-limited projection rather than
         ``Φ_t f`` (its critical points are the truncation's), and the exact flow at 40 times
@@ -95,7 +95,7 @@ class TracksFilter:
     A tilted height and a Gaussian bump: the shallow maximum at the pole and a saddle cancel; the
     bump's maximum and the minimum live to the last time.
 
-    >>> import numpy as np, open3d as o3d, o3dheat.filters as flt
+    >>> import numpy as np, open3d as o3d, o3dheat.pipelines.filters as flt
     >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40)
     >>> V = m.vertex.positions.numpy()
     >>> m.vertex["f"] = o3d.core.Tensor(0.2 * V[:, 2] + np.exp(-((V[:, 0] - 1) ** 2 + V[:, 1] ** 2) / 0.05))
@@ -120,16 +120,16 @@ class TracksFilter:
 
     def __post_init__(self):
         checked(self)
-        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.kernel.VARIANTS
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.kernel.VARIANTS
         if self.times and np.any(np.diff(self.times) <= 0):
             raise MeshError(f"tracks.times must be strictly increasing, got {self.times!r}")
 
     def plan(self, columns):
-        """What this filter writes, given the input's attributes (see :meth:`o3dheat.filters.Chain.check`).
+        """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples
         --------
-        >>> import o3dheat.filters as flt
+        >>> import o3dheat.pipelines.filters as flt
         >>> flt.get("tracks", attribute="height").plan({"positions": 3, "height": 1})
         {'height_lifetime': 1, 'height_track_kind': 1}
         """
@@ -196,7 +196,7 @@ class TracksFilter:
         if S.representative is not None:  # the copies of a welded vertex follow their first copy
             life, kind = life[S.representative], kind[S.representative]
         if not site.is_mesh:  # each surface value goes to its nearest point
-            from o3dheat.sampling import nearest
+            from o3dheat.geometry.sampling import nearest
 
             crit = np.flatnonzero(kind)
             at = nearest(np.arange(site.n), site.P, V[crit])

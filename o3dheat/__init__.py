@@ -4,42 +4,44 @@ Implements the weighted linear-FEM heat kernel of Patanè & Falcidieno, "Multi-S
 Spaces for Shape Processing and Analysis" (SMI 2010). See the README and the documentation site (scripts/docs.sh) for a tour.
 """
 
-from .approximation import ScaleSpace, feature_driven, scale_space
-from .diffusion import diffuse
 from .errors import MeshError, SolverError
-from .fem import mass_matrix, stiffness_matrix
-from .heatflow import HeatFlow, heat_flow
-from .kernel import VARIANTS, HeatKernel, heat_kernel
-from .mesh import MeshReport, Repaired, as_arrays, check_mesh, repair
-from .spectrum import Spectrum, eigensolve
-from .study import robustness_study
+from .geometry import MeshReport, Repaired, as_arrays, check_mesh, repair
+from .pipelines import robustness_study
+from .spectral import (
+    VARIANTS,
+    HeatFlow,
+    HeatKernel,
+    Spectrum,
+    diffuse,
+    eigensolve,
+    heat_flow,
+    heat_kernel,
+    mass_matrix,
+    stiffness_matrix,
+)
 from .topology import (
     CriticalPoints,
     PersistenceDiagram,
+    ScaleSpace,
+    Tracks,
     critical_points,
+    feature_driven,
     level_sets,
     persistence,
+    scale_space,
     simplify_critical_points,
+    track_critical_points,
 )
-from .tracking import Tracks, track_critical_points
 
 # isort: split
-# (after the names above: the submodules as attributes of the package)
-from . import (  # noqa: E402, F401  (o3dheat.filters.apply, o3dheat.batch.run, ...)
-    approximation,
-    batch,
-    cluster,
-    fem,
-    figures,
-    filters,
-    heatflow,
-    io,
-    krylov,
-    plot,
-    sampling,
-    study,
-    topology,
-)
+# the stages as attributes of the package, and the modules users reach by their short names
+# (o3dheat.filters.apply, o3dheat.batch.run, o3dheat.plot.field, ...)
+from . import geometry, io, pipelines, spectral, topology, visualization  # noqa: E402, F401
+from .geometry import sampling  # noqa: E402, F401
+from .pipelines import batch, cluster, filters, study  # noqa: E402, F401
+from .spectral import fem, heatflow, kernel, krylov  # noqa: E402, F401
+from .topology import approximation  # noqa: E402, F401
+from .visualization import figures, plot  # noqa: E402, F401
 
 try:  # one place for the version: pyproject.toml, through the installed package's metadata
     from importlib.metadata import PackageNotFoundError

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import MeshError
+from o3dheat.errors import MeshError
 
 __all__ = ["values", "field", "count", "times", "tolerance", "vertex_set"]
 

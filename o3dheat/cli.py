@@ -15,8 +15,13 @@ import logging
 import sys
 from pathlib import Path
 
-from . import fem, heatflow, kernel
-from .errors import MeshError, SolverError
+import o3dheat
+from o3dheat import demo, geometry, io
+from o3dheat.errors import MeshError, SolverError
+from o3dheat.pipelines import batch, study
+from o3dheat.pipelines import filters as flt
+from o3dheat.spectral import fem, heatflow, kernel, spectrum
+from o3dheat.visualization import figures
 
 __all__ = ["main"]
 
@@ -73,7 +78,7 @@ study.toml:
   scales = 10
   grid = "paper"                     # <GRIDS>: each kernel's scales on its reference spectrum
   method = "spectral"                # <METHODS>: "exact" smooths with the full kernel
-  kernels = <VARIANTS>   # o3dheat.kernel.VARIANTS (default: all)
+  kernels = <VARIANTS>   # o3dheat.spectral.kernel.VARIANTS (default: all)
   descriptors = ["hks_density", "hks_paper", "smooth_height", "eigenvalues"]
   [meshes]
   bunny = "builtin:bunny@20000"      # embedded, decimated to 20000 faces; or a file path
@@ -109,10 +114,9 @@ def _sub(sub, name, help_text):
 def _parser():
     p = argparse.ArgumentParser(prog="o3dheat", description="Multi-scale heat-kernel analysis for Open3D meshes.",
                                 epilog="run 'o3dheat COMMAND --help' for examples of each command")
-    from . import __version__
 
     p.add_argument("-v", "--verbose", action="store_true", help="log what happens")
-    p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    p.add_argument("--version", action="version", version=f"%(prog)s {o3dheat.__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     d = _sub(sub, "demo", "run the demo on the embedded bunny")
     d.add_argument("--out", help="output PLY, in a folder that exists (default: o3dheat-demo/bunny_heat.ply, "
@@ -164,7 +168,7 @@ def _parser():
     s.add_argument("input", help="mesh file")
     s.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
     s.add_argument("--mass", default="consistent", choices=list(fem.MASS_KINDS),
-                   help="the mass B of L x = λ B x (o3dheat.fem.MASS_KINDS; default: %(default)s): "
+                   help="the mass B of L x = λ B x (o3dheat.spectral.fem.MASS_KINDS; default: %(default)s): "
                         + "; ".join(f"{name}: {text}" for name, text in fem.MASS_KINDS.items()))
     s.add_argument("-o", "--out", required=True,
                    help="output .npz, in a folder that exists: the whole spectrum (eigenpairs, operators, areas, "
@@ -193,7 +197,6 @@ def _parse_filter(text):
     """'name:key=value,key=value' -> (name, {key: value parsed by the filter's types})."""
     import typing
 
-    from . import filters as flt
 
     name, _, rest = text.partition(":")
     name = name.strip()
@@ -295,8 +298,6 @@ def _output_folder(path, option):
 
 def _chain(args):
     """The chain of --chain and the -f filters (MeshError when there is none)."""
-    from . import filters as flt
-
     chain = flt.Chain.load(args.chain) if args.chain else flt.Chain()
     for text in args.filter:
         name, params = _parse_filter(text)
@@ -307,29 +308,26 @@ def _chain(args):
 
 
 def _batch(args):
-    from .batch import named_error, run, summary
 
     chain = _chain(args)
     try:
-        table = run(chain, args.inputs, args.out, scheduler=args.scheduler, overwrite=args.overwrite,
+        table = batch.run(chain, args.inputs, args.out, scheduler=args.scheduler, overwrite=args.overwrite,
                     suffix="." + args.format, binary=not args.ascii, progress=args.progress)
     except KeyboardInterrupt:
         print("o3dheat: interrupted; the finished outputs are kept: run the same command again to resume",
               file=sys.stderr)
         return 130
-    print(f"{summary(table)}; outputs in {args.out}")
+    print(f"{batch.summary(table)}; outputs in {args.out}")
     failed = table[table["status"] == "failed"]
     if len(failed):
         print(f"{len(failed)} file(s) failed (retried when the same command runs again):", file=sys.stderr)
         for _, r in failed.iterrows():
-            print(f"  {named_error(r['input'], r['error'])}", file=sys.stderr)
+            print(f"  {batch.named_error(r['input'], r['error'])}", file=sys.stderr)
         return 1
     return 0
 
 
 def _apply(args):
-    from . import filters as flt
-    from .io import read_geometry, write_geometry
 
     src, dst = Path(args.input), Path(args.output)
     if dst.suffix.lower() not in (".ply", ".npz"):
@@ -347,13 +345,13 @@ def _apply(args):
                 raise MeshError(f"--save-chain {saved} is {what}: choose another file")
         _check_output(saved, args.overwrite)
     chain = _chain(args)
-    geometry = read_geometry(src)
+    geometry = io.read_geometry(src)
     if args.cache:
         flt.set_disk_cache(args.cache)
     step, close = _progress(len(chain))
     out = chain(geometry, progress=step)
     close()
-    write_geometry(dst, out, binary=not args.ascii, overwrite=True)
+    io.write_geometry(dst, out, binary=not args.ascii, overwrite=True)
     if args.save_chain:
         chain.save(args.save_chain)
     attrs = out.vertex if hasattr(out, "vertex") else out.point
@@ -361,8 +359,6 @@ def _apply(args):
 
 
 def _repair(args):
-    from .io import read_mesh, write_mesh
-    from .mesh import check_mesh, repair
 
     src, dst = Path(args.input), Path(args.output)
     if dst.suffix.lower() not in (".ply", ".npz"):
@@ -370,16 +366,15 @@ def _repair(args):
     if src.exists() and _same_file(src, dst):
         raise MeshError(f"refusing to overwrite the input {src}: choose another output")
     _check_output(dst, args.overwrite)
-    r = repair(read_mesh(src), split=not args.no_split, orient=not args.no_orient,
+    r = geometry.repair(io.read_mesh(src), split=not args.no_split, orient=not args.no_orient,
                min_component_faces=args.min_component_faces)
-    write_mesh(dst, r.mesh, binary=not args.ascii, overwrite=True)
+    io.write_mesh(dst, r.mesh, binary=not args.ascii, overwrite=True)
     print(f"{src}: {r}")
-    print(check_mesh(r.mesh))
+    print(geometry.check_mesh(r.mesh))
     print(f"wrote {dst}")
 
 
 def _filters(args):
-    from . import filters as flt
 
     if not args.name:
         for name in flt.names():
@@ -392,8 +387,6 @@ def _filters(args):
 
 
 def _spectrum(args):
-    from .io import read_mesh
-    from .spectrum import eigensolve
 
     out = Path(args.out)
     if out.suffix.lower() != ".npz":
@@ -401,16 +394,13 @@ def _spectrum(args):
     _check_output(out, args.overwrite)
     if args.k < 1:
         raise MeshError(f"-k must be at least 1, got {args.k}")
-    s = eigensolve(read_mesh(args.input), k=args.k, mass=args.mass)
+    s = spectrum.eigensolve(io.read_mesh(args.input), k=args.k, mass=args.mass)
     s.save(out, overwrite=True)  # _check_output refused an existing file without --overwrite
     print(f"wrote {out}: {s.k} eigenpairs of {s.n} vertices, λ in [{s.eigenvalues[0]:.4g}, "
           f"{s.eigenvalues[-1]:.4g}], max residual {s.residuals.max():.1e} ({s.backend})")
 
 
 def _figure(args):
-    from .figures import paper_figures
-    from .filters import one_column
-    from .io import read_mesh
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
@@ -420,17 +410,17 @@ def _figure(args):
                         "choose another folder")
     if args.column is not None and not args.attribute:
         raise MeshError("--column picks a column of --attribute: give --attribute too")
-    mesh = read_mesh(args.input)
+    mesh = io.read_mesh(args.input)
     field = None
     if args.attribute:
         if args.attribute not in mesh.vertex:
             raise MeshError(f"no vertex attribute {args.attribute!r}; the mesh has: "
                             f"{', '.join(k for k in mesh.vertex)}")
-        field = one_column(mesh.vertex[args.attribute].numpy(), args.attribute, args.column, option="--column ")
+        field = flt.one_column(mesh.vertex[args.attribute].numpy(), args.attribute, args.column, option="--column ")
     created = not out.exists()
     _output_folder(out, "-o")
     try:
-        index = paper_figures(mesh, args.out, field=field, k=args.k, noise=args.noise, seed=args.seed,
+        index = figures.paper_figures(mesh, args.out, field=field, k=args.k, noise=args.noise, seed=args.seed,
                               name=Path(args.input).stem, up=args.up, tracks=True)
     except BaseException:
         if created and out.is_dir() and not any(out.iterdir()):
@@ -440,16 +430,14 @@ def _figure(args):
 
 
 def _study(args):
-    from .figures import study_figures
-    from .study import load_config, robustness_study
 
     out = Path(args.out)
     _check_folder(out, "--out")  # before the config's meshes are read
-    kw = load_config(args.config)
-    table = robustness_study(out=out, scheduler=args.scheduler, **kw)  # creates out once connected
+    kw = study.load_config(args.config)
+    table = study.robustness_study(out=out, scheduler=args.scheduler, **kw)  # creates out once connected
     ok = table[table["error"].fillna("") == ""]
     failed = table[table["error"].fillna("") != ""]
-    written = study_figures(table, out)
+    written = figures.study_figures(table, out)
     if len(ok):
         summary = ok.groupby(["descriptor", "kernel"])["rel_l2"].median().unstack("kernel")
         print(f"median relative L2 discrepancy to the reference sampling ({len(ok)} rows):")
@@ -503,7 +491,6 @@ def main(argv=None):
 
 
 def _demo(args):
-    from .demo import run
 
     out = args.out
     if out is None:  # the default name, or the next free one: a rerun keeps earlier results
@@ -514,17 +501,15 @@ def _demo(args):
         _check_output(Path(out), args.overwrite)
     if not Path(out).parent.is_dir():  # the default folder, created before the work
         _output_folder(Path(out).parent, "--out")
-    run(out=out, k=args.k, reduction=args.reduction, seed=args.seed)
+    demo.run(out=out, k=args.k, reduction=args.reduction, seed=args.seed)
 
 
 def _info(args):
-    from .io import read_geometry
-    from .mesh import check_mesh
 
-    g = read_geometry(args.mesh)
+    g = io.read_geometry(args.mesh)
     if not hasattr(g, "triangle"):
         raise MeshError(f"{args.mesh} is a point cloud ({len(g.point.positions)} points): info checks meshes")
-    print(check_mesh(g))
+    print(geometry.check_mesh(g))
 
 
 #: subcommand -> its function (args -> exit code, None for 0): the one dispatch of :func:`main`

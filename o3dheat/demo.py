@@ -17,10 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .heatflow import HeatFlow
-from .kernel import HeatKernel
-from .spectrum import eigensolve
-from .topology import Surface, critical_points
+from o3dheat.spectral import HeatFlow, HeatKernel, eigensolve
+from o3dheat.topology import Surface, critical_points
 
 __all__ = ["default_mesh", "sample_mesh", "SAMPLES", "bumpy_torus", "run"]
 
@@ -82,7 +80,7 @@ def sample_mesh(name):
     """
     import open3d as o3d
 
-    from .errors import MeshError
+    from o3dheat.errors import MeshError
 
     if name == "torus":
         return bumpy_torus()
@@ -137,7 +135,7 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     k : int
         Eigenpairs.
     reduction : float
-        Fraction of triangles removed by :func:`o3dheat.sampling.decimate` (quadric decimation
+        Fraction of triangles removed by :func:`o3dheat.geometry.sampling.decimate` (quadric decimation
         gives an irregular, curvature-adaptive sampling); 0 keeps the mesh.
     noise : float
         Standard deviation of the Gaussian noise, relative to the range of the height function.
@@ -166,10 +164,9 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     """
     import open3d as o3d
 
-    from .filters import apply
-    from .io import write_mesh
-    from .mesh import as_arrays
-    from .sampling import decimate
+    from o3dheat.geometry import as_arrays, decimate
+    from o3dheat.io import write_mesh
+    from o3dheat.pipelines import apply
 
     timings = {}
     t0 = time.perf_counter()
@@ -241,7 +238,7 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
          f"certificate, ‖Φ_t f − exact‖_W / ‖f‖_W <= {bound[0]:.2g} at t_1 .. {bound[-1]:.2g} at t_10. The exact "
          f"kernel smooths by t alone: {counts[21]} -> {counts[30]} critical points across the paper's scales, "
          f"{flow_report.solves} solves on one factor)")
-    from ._jit import any_compiled
+    from o3dheat._jit import any_compiled
 
     def label(name, detail, module, what):  # the first run of an installation compiles the loops
         notes = ([detail] if detail else []) + ([f"incl. compiling {what}, once per installation"]
@@ -249,10 +246,10 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
         return f"{name} ({'; '.join(notes)})" if notes else name
 
     stages = {"load": timings["load"], "resample": timings["resample"],
-              label("assemble", "", "o3dheat._geometry_loops", "the assembly loops"): spec.timings.get("assemble", 0.0),
+              label("assemble", "", "o3dheat.geometry._loops", "the assembly loops"): spec.timings.get("assemble", 0.0),
               "factorize": spec.timings.get("factorize", 0.0),
               "eigensolve": spec.timings.get("solve", 0.0), "smooth (2 x 10 scales)": timings["smooth"],
-              label("exact", "10 scales", "o3dheat._krylov_loops", "the Krylov loops"): timings["exact"],
+              label("exact", "10 scales", "o3dheat.spectral._krylov_loops", "the Krylov loops"): timings["exact"],
               "hks (10 scales)": timings["hks"],
               label("critical points", "31 fields", "o3dheat.topology", "the topology loops"): timings["critical"],
               "write PLY": timings["write"]}

@@ -24,7 +24,7 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
-from .errors import SolverError
+from o3dheat.errors import SolverError
 
 __all__ = ["CHUNK", "background", "blas_one_thread", "get_threads", "row_parts", "run", "threads"]
 
@@ -110,7 +110,7 @@ def threads(n):
     Examples
     --------
     >>> import numpy as np, scipy.sparse as sp
-    >>> from o3dheat.linalg import factorize
+    >>> from o3dheat.spectral.linalg import factorize
     >>> from o3dheat.parallel import threads
     >>> f = factorize(sp.diags([2.0, 4.0]).tocsc())
     >>> with threads(1):

@@ -2,9 +2,9 @@
 """Benchmark: a chain over many files, sequentially and on a local Dask cluster of 2 workers.
 
 Writes ``--files`` different meshes of about ``--vertices`` vertices (deformed spheres) and runs
-``scalar height -> heat_smooth k=100 -> colorize`` on them with :func:`o3dheat.batch.run`, in this
+``scalar height -> heat_smooth k=100 -> colorize`` on them with :func:`o3dheat.pipelines.batch.run`, in this
 process (all of o3dheat's threads, the files one after the other) and on
-:func:`o3dheat.cluster.local_cluster` (one single-threaded worker per core, one file per task).
+:func:`o3dheat.pipelines.cluster.local_cluster` (one single-threaded worker per core, one file per task).
 Prints a Markdown table: wall time, CPU time, files per minute and the ratio to the sequential
 run, and checks that every run wrote the same files, byte for byte. One-time costs are measured
 apart: the sequential run follows a one-file batch that imports everything; the cluster is started
@@ -56,10 +56,10 @@ def main(argv=None):
 
     from distributed import Client
 
-    from o3dheat.batch import run
-    from o3dheat.cluster import local_cluster
-    from o3dheat.filters import Chain
     from o3dheat.parallel import get_threads
+    from o3dheat.pipelines.batch import run
+    from o3dheat.pipelines.cluster import local_cluster
+    from o3dheat.pipelines.filters import Chain
 
     chain = Chain([("scalar", {"kind": "height"}), ("heat_smooth", {"attribute": "height", "k": args.k}),
                    ("colorize", {"attribute": "height_smooth", "column": 4})])
@@ -85,7 +85,7 @@ def main(argv=None):
             start = time.perf_counter() - t0
             t0 = time.perf_counter()
             run(chain, tmp / "warm" / "*.ply", tmp / f"warm-dask{i}", scheduler=client, progress=False)
-            client.run(lambda: __import__("o3dheat.batch"))  # every worker, not only the one that ran it
+            client.run(lambda: __import__("o3dheat.pipelines.batch"))  # every worker, not only the one that ran it
             warm = time.perf_counter() - t0
             w0, c0, t0 = sum(client.run(_worker_cpu).values()), _cpu(), time.perf_counter()
             dist = run(chain, pattern, tmp / f"dask{i}", scheduler=client, progress=False)

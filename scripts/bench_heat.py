@@ -11,7 +11,7 @@ mesh in this process (untimed) and passed to every case; grid "paper+log" is bot
 
 Each case runs in a fresh subprocess, timed from the (V, F) arrays in memory to the smoothed
 fields in memory: set-up is counted on both sides (assembly, factorization, and the eigensolve of
-the spectral pipelines). Outside the timing: imports, ``o3dheat.linalg.available_backends()``
+the spectral pipelines). Outside the timing: imports, ``o3dheat.spectral.linalg.available_backends()``
 (loads CHOLMOD and cholespy) and one run of the same pipeline on a 762-vertex sphere (loads
 numba's cached loops and SciPy's lazy modules). Peak memory is the largest resident set size,
 sampled every 10 ms, minus the resident size just before the work. With ``--repeat N`` the cases
@@ -102,7 +102,7 @@ def child(method, path, nfields, grid, out):
     from lapy import Solver, TriaMesh  # noqa: F401
 
     import o3dheat  # noqa: F401 - import cost outside the timing
-    from o3dheat.linalg import available_backends
+    from o3dheat.spectral.linalg import available_backends
 
     available_backends()  # loads CHOLMOD and cholespy: library loading is not part of the timing
     s = o3d.geometry.TriangleMesh.create_sphere(1.0, 20)  # warm-up: numba's cached loops, lazy imports
@@ -178,7 +178,7 @@ def main():
         child(method, path, int(nfields), grid, out)
         return
     import o3dheat
-    from o3dheat.spectrum import clear_cache
+    from o3dheat.spectral.spectrum import clear_cache
 
     wanted = set(args.cases.split(","))
     cases = [(m, g, c) for g in GRIDS for c in FIELDS for m in METHODS

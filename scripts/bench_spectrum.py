@@ -96,7 +96,7 @@ def child(method, path, k, out):
     from lapy import Solver, TriaMesh  # noqa: F401 - import cost outside the timing
 
     import o3dheat
-    from o3dheat.linalg import available_backends
+    from o3dheat.spectral.linalg import available_backends
 
     available_backends()  # loads CHOLMOD and cholespy: library loading is not part of the timing
     peak = PeakMemory()

@@ -9,7 +9,7 @@ a small study that imports everything; each cluster is started (``cluster start`
 then run the same small study (``workers' warm-up``: imports, pymeshlab's first call); the last
 column gives the speed-up with both counted. ``--dask-defaults`` adds a run on a cluster with
 Dask's default worker environment (``MALLOC_TRIM_THRESHOLD_=65536``, which
-:func:`o3dheat.cluster.local_cluster` does not set) to show what it costs. Runs alternate and the
+:func:`o3dheat.pipelines.cluster.local_cluster` does not set) to show what it costs. Runs alternate and the
 fastest of ``--repeat`` is shown; the machine should be otherwise idle (with 2 cores, anything
 else running takes a worker's core).
 
@@ -60,15 +60,15 @@ def main(argv=None):
     import open3d as o3d
     from distributed import Client, LocalCluster
 
-    from o3dheat.cluster import local_cluster
-    from o3dheat.study import _builtin, robustness_study
+    from o3dheat.pipelines.cluster import local_cluster
+    from o3dheat.pipelines.study import _builtin, robustness_study
 
     meshes = {name: _builtin(f"builtin:{name}@{args.faces}") for name in args.meshes.split(",")}
     kw = dict(k=args.k, scales=10, progress=False)
     tasks = len(meshes) * len(RESAMPLINGS)
     small = ({"warm-up": o3d.t.geometry.TriangleMesh.create_sphere(1.0, 12)}, {"warm": {"kind": "remesh"}})
     small_kw = dict(kernels=["weighted"], descriptors=["hks_density"], k=10, scales=2, progress=False)
-    labels = ["sequential", f"Dask, {args.workers} workers (o3dheat.cluster.local_cluster)"]
+    labels = ["sequential", f"Dask, {args.workers} workers (o3dheat.pipelines.cluster.local_cluster)"]
     makers = [None, lambda: local_cluster(args.workers)]
     if args.dask_defaults:
         labels.append(f"Dask, {args.workers} workers (LocalCluster, Dask's default worker environment)")

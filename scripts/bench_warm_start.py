@@ -26,7 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_spectrum import bunny  # noqa: E402
 
 import o3dheat  # noqa: E402
-from o3dheat import fem, lanczos, linalg, sampling, spectrum  # noqa: E402
+from o3dheat.geometry import sampling  # noqa: E402
+from o3dheat.spectral import fem, lanczos, linalg, spectrum
 
 RESAMPLINGS = [("jitter", {"amount": 0.3}), ("decimate", {"reduction": 0.5}), ("remesh", {}), ("anisotropic", {})]
 

@@ -4,7 +4,7 @@
     .venv/bin/python scripts/paper_figures.py                 # -> paper-figures/{bunny,torus}/
     .venv/bin/python scripts/paper_figures.py --out /tmp/figs -k 50
 
-Each sub-folder has an index.md saying what each image shows (see o3dheat.figures.paper_figures).
+Each sub-folder has an index.md saying what each image shows (see o3dheat.visualization.figures.paper_figures).
 The same figures for any mesh: ``o3dheat figure MESH -o FOLDER``.
 """
 
@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 from o3dheat.demo import bumpy_torus, default_mesh
-from o3dheat.figures import paper_figures
+from o3dheat.visualization.figures import paper_figures
 
 
 def main(argv=None):

@@ -22,7 +22,7 @@ fi
 # libopenblas0-pthread: Debian's optimized BLAS, which becomes the system libblas.so.3 (through
 # update-alternatives) and so CHOLMOD's: supernodal factorizations of large meshes about 1.8x faster.
 # libvulkan1 and mesa-vulkan-drivers (lavapipe, software Vulkan): Open3D's offscreen renderer, which
-# draws o3dheat.plot's 3D figures with no display and no GPU (without them: a warning and flat drawings).
+# draws o3dheat.visualization.plot's 3D figures with no display and no GPU (without them: a warning and flat drawings).
 pkgs=(libsuitesparse-dev libopenblas0-pthread libusb-1.0-0 libgomp1 libgl1 libegl1 libopengl0 libglu1-mesa
       libvulkan1 mesa-vulkan-drivers)
 python3 -c 'import venv, ensurepip' 2>/dev/null || pkgs+=(python3-venv)

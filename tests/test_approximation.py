@@ -7,7 +7,7 @@ import pytest
 from conftest import grid, icosphere, irregular
 
 import o3dheat
-from o3dheat.approximation import project
+from o3dheat.topology.approximation import project
 
 
 @pytest.fixture(scope="module")

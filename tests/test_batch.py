@@ -9,10 +9,10 @@ import pytest
 from conftest import torus
 
 import o3dheat
-from o3dheat.batch import COLUMNS, MANIFEST, expand, outputs, run
 from o3dheat.cli import main
-from o3dheat.filters import Chain
 from o3dheat.io import read_mesh, write_mesh
+from o3dheat.pipelines.batch import COLUMNS, MANIFEST, expand, outputs, run
+from o3dheat.pipelines.filters import Chain
 
 STEPS = [("scalar", {"kind": "height"}), ("heat_smooth", {"attribute": "height", "k": 20, "scales": 3}),
          ("colorize", {"attribute": "height_smooth", "column": 1})]
@@ -70,9 +70,9 @@ def test_sequential_table_outputs_and_resume(scans, tmp_path):
     assert t["input"].tolist() == [str(scans / f"m{i}.ply") for i in range(3)]
     assert t["output"].tolist() == [str(out / f"m{i}.ply") for i in range(3)]
     assert (t["seconds"] > 0).all() and (t["error"] == "").all()
-    import o3dheat.spectrum
+    import o3dheat.spectral.spectrum
 
-    assert len(o3dheat.spectrum._MEMORY) == 0  # a file's spectra are freed before the next file
+    assert len(o3dheat.spectral.spectrum._MEMORY) == 0  # a file's spectra are freed before the next file
     direct = Chain(STEPS)(read_mesh(scans / "m1.ply"))
     got, _ = _attributes(out / "m1.ply")
     assert set(got) == {"positions", "height", "height_smooth", "colors"}
@@ -195,7 +195,7 @@ def test_dask_gives_the_same_files_bit_for_bit(scans, tmp_path):
     pytest.importorskip("distributed")
     from distributed import Client
 
-    from o3dheat.cluster import local_cluster
+    from o3dheat.pipelines.cluster import local_cluster
 
     _bad(scans)
     big = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 100)  # 19802 vertices: more than one row part
@@ -268,7 +268,7 @@ def test_cli_batch_on_its_own_local_cluster(scans, tmp_path, capsys, monkeypatch
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(o3dheat.batch, "run", interrupted)
+    monkeypatch.setattr(o3dheat.pipelines.batch, "run", interrupted)
     assert main(["batch", str(scans / "*.ply"), "--out", str(out)] + FLAGS) == 130
     assert "run the same command again to resume" in capsys.readouterr().err
 

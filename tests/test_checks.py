@@ -7,7 +7,7 @@ import pytest
 
 import o3dheat
 from o3dheat.checks import count, values
-from o3dheat.sampling import jitter, transfer
+from o3dheat.geometry.sampling import jitter, transfer
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +33,7 @@ def test_fields_in_every_form_give_the_same_result(sphere):
         if not tol:
             assert o3dheat.critical_points(m, g).counts == ref_c
             assert o3dheat.persistence(m, g).pairs.shape == o3dheat.persistence(m, f).pairs.shape
-    o3dheat.plot.field(m, forms["tensor"])
+    o3dheat.visualization.plot.field(m, forms["tensor"])
     o3dheat.scale_space(K, forms["tensor"])
 
 
@@ -74,7 +74,7 @@ def test_values():
 
 def test_absurd_remeshing_iterations_are_refused(sphere):
     m, _ = sphere
-    from o3dheat.sampling import anisotropic, remesh
+    from o3dheat.geometry.sampling import anisotropic, remesh
 
     with pytest.raises(o3dheat.MeshError, match="iterations must be an integer from 1 to 1000"):
         remesh(m, iterations=10**9)
@@ -118,4 +118,4 @@ def test_eigensolve_settings_are_checked(kw, msg):
     with pytest.raises(o3dheat.MeshError, match=msg):
         o3dheat.eigensolve((V, F), k=2, cache=False, **kw)
     with pytest.raises(o3dheat.MeshError, match=msg):
-        o3dheat.spectrum.eigensolve_operators(sp.identity(4) * 2 - sp.eye(4, k=1) - sp.eye(4, k=-1), sp.identity(4), k=2, **kw)
+        o3dheat.spectral.spectrum.eigensolve_operators(sp.identity(4) * 2 - sp.eye(4, k=1) - sp.eye(4, k=-1), sp.identity(4), k=2, **kw)

@@ -5,7 +5,7 @@ import os
 import pytest
 
 import o3dheat
-from o3dheat.cluster import connect, local_cluster, progress_bar, session
+from o3dheat.pipelines.cluster import connect, local_cluster, progress_bar, session
 
 
 def test_sequential_and_bad_schedulers():
@@ -93,7 +93,7 @@ def test_a_script_without_the_main_guard_is_told_in_one_line_before_any_worker_s
 
 
 def test_unguarded_main_reads_the_line_being_run(tmp_path):
-    run = _script(tmp_path, "where.py", "from o3dheat.cluster import unguarded_main\n"
+    run = _script(tmp_path, "where.py", "from o3dheat.pipelines.cluster import unguarded_main\n"
                                         "def f():\n    return unguarded_main()\n"
                                         "print('top', f() is not None)\n"
                                         "if __name__ == '__main__':\n"
@@ -106,7 +106,7 @@ def test_unguarded_main_reads_the_line_being_run(tmp_path):
 def test_closing_a_local_cluster_with_a_busy_worker_is_silent(tmp_path):
     pytest.importorskip("distributed")
     run = _script(tmp_path, "busy.py", "import logging, time\n"
-                                       "from o3dheat.cluster import session\n"
+                                       "from o3dheat.pipelines.cluster import session\n"
                                        "def slow(x):\n    import time\n    time.sleep(60)\n"
                                        "if __name__ == '__main__':\n"
                                        "    logging.basicConfig(level=logging.WARNING)\n"

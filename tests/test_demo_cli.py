@@ -190,8 +190,8 @@ def test_missing_output_folders_are_refused_before_any_work(tmp_path, sphere_ply
     """Every subcommand that writes a file refuses a folder that does not exist, and every one
     that writes into a folder refuses one it cannot create, before computing (exit status 2)."""
     import o3dheat.demo as demo
-    import o3dheat.figures as figures
-    import o3dheat.spectrum as spectrum
+    import o3dheat.spectral.spectrum as spectrum
+    import o3dheat.visualization.figures as figures
 
     monkeypatch.setattr(demo, "run", lambda **kw: pytest.fail("the demo ran"))
     monkeypatch.setattr(figures, "paper_figures", lambda *a, **kw: pytest.fail("the figures were drawn"))
@@ -218,7 +218,7 @@ def test_missing_output_folders_are_refused_before_any_work(tmp_path, sphere_ply
 
 
 def test_cli_figure_column(tmp_path, sphere_ply, capsys, monkeypatch):
-    import o3dheat.figures as figures
+    import o3dheat.visualization.figures as figures
     from o3dheat.io import write_mesh
 
     m = read_mesh(sphere_ply)

@@ -1,4 +1,4 @@
-"""o3dheat.diffusion: eq. (8) and backward Euler converge to the spectral solution as dt -> 0."""
+"""o3dheat.spectral.diffusion: eq. (8) and backward Euler converge to the spectral solution as dt -> 0."""
 
 import numpy as np
 import pytest
@@ -65,7 +65,7 @@ def test_explicit_unstable_step_refused(small):
 @pytest.mark.parametrize("kwargs, match", [
     (dict(dt=-1.0, steps=3), "dt"), (dict(dt=np.nan, steps=3), "dt"), (dict(dt=0.1, steps=-1), "steps"),
     (dict(dt=0.1, steps=2, scheme="rk4"), "scheme"),
-    (dict(dt=0.1, steps=2, mass="area"), ", ".join(o3dheat.fem.MASS_KINDS))])
+    (dict(dt=0.1, steps=2, mass="area"), ", ".join(o3dheat.spectral.fem.MASS_KINDS))])
 def test_bad_arguments(small, kwargs, match):
     V, F = small
     with pytest.raises(o3dheat.MeshError, match=match):
@@ -101,7 +101,7 @@ def reference_limit(V, F, mass="consistent"):
     multiplies a mode by 1 − λ dt/2, stable for dt <= 4/λ)."""
     import scipy.linalg
 
-    L, B, _ = o3dheat.fem.operators(V, F, mass)
+    L, B, _ = o3dheat.spectral.fem.operators(V, F, mass)
     return 4.0 / scipy.linalg.eigh(L.toarray(), B.toarray(), eigvals_only=True)[-1], B
 
 
@@ -126,6 +126,6 @@ def test_explicit_step_limit_is_the_one_checked_and_stated(level, mass):
 
 
 def test_explicit_step_limit_formula():
-    from o3dheat.diffusion import explicit_step_limit
+    from o3dheat.spectral.diffusion import explicit_step_limit
 
     assert explicit_step_limit(2.0) == 2.0 and explicit_step_limit(0.0) == np.inf

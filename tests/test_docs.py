@@ -24,7 +24,8 @@ EXAMPLES = re.compile(r"^Examples\n-{8,}\n", re.M)
 
 
 def modules():
-    names = [f"o3dheat.{m.name}" for m in pkgutil.iter_modules(o3dheat.__path__) if not m.name.startswith("_")]
+    names = [m.name for m in pkgutil.walk_packages(o3dheat.__path__, prefix="o3dheat.")
+             if not any(part.startswith("_") for part in m.name.split("."))]
     names += [f"o3dheat_filters.{m.name}" for m in pkgutil.iter_modules(o3dheat_filters.__path__)
               if not m.name.startswith("_")]
     return sorted(names)

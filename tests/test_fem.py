@@ -1,4 +1,4 @@
-"""o3dheat.fem: identities of the FEM operators and agreement with independent implementations
+"""o3dheat.spectral.fem: identities of the FEM operators and agreement with independent implementations
 (LaPy's FEM and libigl's cotangent, mass and Voronoi matrices)."""
 
 import numpy as np
@@ -7,8 +7,8 @@ import scipy.sparse as sp
 from conftest import grid, icosphere, irregular, torus
 
 import o3dheat
-from o3dheat.fem import voronoi_areas
-from o3dheat.mesh import face_areas
+from o3dheat.geometry.mesh import face_areas
+from o3dheat.spectral.fem import voronoi_areas
 
 MESHES = {"sphere": icosphere(2), "torus": torus(), "grid": grid(2, 1, 12, 6, jitter=0.3), "irregular": irregular()}
 
@@ -110,7 +110,7 @@ def test_zero_area_face_rejected_by_raw_operators():
 def test_curvatures_and_gauss_bonnet():
     from conftest import grid, icosphere, torus
 
-    from o3dheat.fem import gaussian_curvature, mean_curvature, voronoi_areas
+    from o3dheat.spectral.fem import gaussian_curvature, mean_curvature, voronoi_areas
 
     for R in (0.5, 3.0):
         V, F = icosphere(4, radius=R)
@@ -128,7 +128,7 @@ def test_curvatures_and_gauss_bonnet():
 @pytest.mark.parametrize("kind", ["consistent", "lumped", "voronoi", "identity"])
 def test_operators_equal_the_separate_functions(mesh, kind):
     V, F = mesh
-    L, B, a = o3dheat.fem.operators(V, F, kind)
+    L, B, a = o3dheat.spectral.fem.operators(V, F, kind)
     assert abs(L - o3dheat.stiffness_matrix(V, F)).max() == 0
     B0 = sp.identity(len(V)) if kind == "identity" else o3dheat.mass_matrix(V, F, kind)
     assert abs(B - B0).max() == 0

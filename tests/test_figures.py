@@ -5,8 +5,8 @@ import pytest
 from conftest import glued_spheres, grid, icosphere, torus
 
 import o3dheat
-import o3dheat.figures as figures
-import o3dheat.plot as plot
+import o3dheat.visualization.figures as figures
+import o3dheat.visualization.plot as plot
 
 
 def not_blank(path):
@@ -209,7 +209,7 @@ def test_gallery_colorbars_name_the_field_drawn():
 # ------------------------------------------------------------------ tracks across scales (issue 24)
 def bunny_like():
     from o3dheat.demo import sample_mesh
-    from o3dheat.sampling import decimate
+    from o3dheat.geometry.sampling import decimate
 
     try:
         return decimate(sample_mesh("bunny"), target_faces=20000).arrays, "y"

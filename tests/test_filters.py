@@ -11,8 +11,8 @@ import pytest
 from conftest import icosphere, torus
 
 import o3dheat
-import o3dheat.filters as flt
-from o3dheat.fem import voronoi_areas
+import o3dheat.pipelines.filters as flt
+from o3dheat.spectral.fem import voronoi_areas
 
 BUILTIN = ["colorize", "critical_points", "feature_approx", "heat_smooth", "hks", "scalar"]
 
@@ -147,9 +147,9 @@ def test_the_exact_method_is_the_full_kernel(sphere, monkeypatch):
     A = o3dheat.simplify_critical_points((V, F), f, keep_fraction=0.5)
     glob = flt.apply(m, "feature_approx", attribute="f", keep_fraction=0.5, method="exact", t=0.05)
     assert np.allclose(glob.vertex["f_glob"].numpy(),
-                       o3dheat.heat_flow((V, F), o3dheat.approximation.project(f, A), 0.05), atol=1e-9)
+                       o3dheat.heat_flow((V, F), o3dheat.topology.approximation.project(f, A), 0.05), atol=1e-9)
     # a bad method or tol is refused before any work
-    from o3dheat import spectrum
+    from o3dheat.spectral import spectrum
 
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("an eigensolve ran"))
     for bad, match in (({"method": "fast"}, "method must be one of 'spectral', 'exact'"),
@@ -225,9 +225,9 @@ def test_every_filter_follows_the_column_rule(sphere):
 
 
 def test_one_column_is_checked_before_the_eigensolve(sphere, monkeypatch):
-    import o3dheat.spectrum as spectrum
+    import o3dheat.spectral.spectrum as spectrum
 
-    o3dheat.spectrum.clear_cache()
+    o3dheat.spectral.spectrum.clear_cache()
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("eigensolve called"))
     m = flt.apply(sphere, "scalar", kind="noise", attribute="positions")
     for name, params in [("heat_smooth", {"k": 20}), ("critical_points", {}), ("feature_approx", {"k": 20})]:
@@ -244,8 +244,8 @@ def test_summaries_and_help_are_plain_text():
             assert "\n" not in text
         assert d["summary"].endswith("."), (name, d["summary"])  # a whole paragraph, not its first line
     assert flt.describe("critical_points")["summary"].endswith("3 maximum.")
-    assert flt.plain_text(":func:`o3dheat.kernel.smooth` and :meth:`~o3dheat.HeatKernel.hks`::") == \
-        "o3dheat.kernel.smooth and hks:"
+    assert flt.plain_text(":func:`o3dheat.spectral.kernel.smooth` and :meth:`~o3dheat.HeatKernel.hks`::") == \
+        "o3dheat.spectral.kernel.smooth and hks:"
 
 
 def test_parse_value_lists():
@@ -255,9 +255,9 @@ def test_parse_value_lists():
 
 
 def test_a_chain_solves_the_eigenproblem_once(sphere, monkeypatch):
-    import o3dheat.spectrum as spectrum
+    import o3dheat.spectral.spectrum as spectrum
 
-    o3dheat.spectrum.clear_cache()
+    o3dheat.spectral.spectrum.clear_cache()
     calls = []
     real = spectrum.eigensolve
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: calls.append(1) or real(*a, **k))
@@ -300,7 +300,7 @@ def test_batch_runs_a_chain_over_files_and_filters_do_not_import_batch(sphere, t
     for name in ("a", "b"):
         write_mesh(tmp_path / f"{name}.ply", sphere)
     chain = flt.Chain([("scalar", {"kind": "gaussian_curvature"})])
-    table = o3dheat.batch.run(chain, tmp_path / "*.ply", tmp_path / "out", scheduler="sequential", progress=False)
+    table = o3dheat.pipelines.batch.run(chain, tmp_path / "*.ply", tmp_path / "out", scheduler="sequential", progress=False)
     assert table["status"].tolist() == ["done", "done"]
     np.testing.assert_array_equal(read_mesh(tmp_path / "out" / "b.ply").vertex["gaussian_curvature"].numpy(),
                                   chain(read_mesh(tmp_path / "b.ply")).vertex["gaussian_curvature"].numpy())
@@ -404,12 +404,12 @@ def test_filters_on_point_clouds(operators):
 
 
 def test_disk_cache_skips_the_eigensolve(sphere, tmp_path):
-    o3dheat.spectrum.clear_cache()
+    o3dheat.spectral.spectrum.clear_cache()
     flt.set_disk_cache(tmp_path)
     try:
         flt.apply(sphere, "hks", k=12)
         assert len(list(tmp_path.glob("spectrum-*.npz"))) == 1
-        o3dheat.spectrum.clear_cache()  # a new session: the disk cache answers
+        o3dheat.spectral.spectrum.clear_cache()  # a new session: the disk cache answers
         spec = flt.shared_spectrum(sphere.vertex.positions.numpy(), sphere.triangle.indices.numpy(), k=12)
         assert spec.timings["cache"] is True
     finally:
@@ -470,13 +470,13 @@ def test_one_of_reads_its_choices_when_checking():
 def test_a_literal_choice_of_none_is_written_none():
     import typing
 
-    from o3dheat.filters import parse_value
+    from o3dheat.pipelines.filters import parse_value
 
     tp = typing.Literal[None, "lambda2"]
     assert parse_value("none", tp) is None and parse_value("None", tp) is None
     assert parse_value("lambda2", tp) == "lambda2"
     assert parse_value("none", typing.Literal["a", "b"]) == "none"  # refused later, with the choices
-    out = o3dheat.filters.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8), "hks",
+    out = o3dheat.pipelines.filters.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8), "hks",
                                 **{"normalize": parse_value("none", tp), "k": 6, "scales": 2})
     assert out.vertex["hks"].shape[1] == 2
 
@@ -609,7 +609,7 @@ def test_chain_check_stops_at_a_filter_without_a_plan():
 
 
 def test_a_chain_refuses_before_any_work(monkeypatch):
-    from o3dheat import spectrum
+    from o3dheat.spectral import spectrum
 
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("an eigensolve ran"))
     chain = flt.Chain([("hks", {"k": 8}), ("colorize", {"attribute": "hks"})])
@@ -624,7 +624,7 @@ def test_batch_needs_an_output_folder(tmp_path):
     chain = flt.Chain([("scalar", {"kind": "height"})])
     for bad in (None, 3, ""):
         with pytest.raises(MeshError, match=r"out_dir must be the output folder.*got " + re.escape(repr(bad))):
-            o3dheat.batch.run(chain, tmp_path / "*.ply", bad, scheduler="sequential")
+            o3dheat.pipelines.batch.run(chain, tmp_path / "*.ply", bad, scheduler="sequential")
 
 
 def test_parameters_are_checked_before_any_work(monkeypatch):
@@ -632,7 +632,7 @@ def test_parameters_are_checked_before_any_work(monkeypatch):
     eigensolve of the steps before it: a batch computed every file, then failed each."""
     import dataclasses
 
-    from o3dheat import spectrum
+    from o3dheat.spectral import spectrum
     from o3dheat_filters.critical_points import CriticalPointsFilter
 
     calls = []
@@ -725,7 +725,7 @@ def test_a_capped_k_is_a_warning(name, params, caplog):
 def test_outputs_that_cannot_be_written_are_refused_before_any_work(step, match, monkeypatch):
     """Chain.check took a scalar named colors, a field named x or "my field": the run (or the PLY
     writer, after every file's eigensolve) failed."""
-    from o3dheat import spectrum
+    from o3dheat.spectral import spectrum
 
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("an eigensolve ran"))
     mesh = flt.apply(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6), "scalar", kind="height")
@@ -750,7 +750,7 @@ def test_writable_outputs_still_written(tmp_path):
 
 def test_outputs_whose_ply_properties_collide_are_refused(monkeypatch):
     """PLY stores a 3-column attribute a as a_0 a_1 a_2: an attribute a_1 beside it cannot be written."""
-    from o3dheat import spectrum
+    from o3dheat.spectral import spectrum
 
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("an eigensolve ran"))
     mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6)
@@ -771,7 +771,7 @@ def test_outputs_whose_ply_properties_collide_are_refused(monkeypatch):
 def test_filters_take_every_mesh_like():
     """Issue 22: a resampling result (Resampled) and a repair result (Repaired) were refused by the
     filters; they take any mesh-like, and (V, F) arrays, as the rest of o3dheat does."""
-    import o3dheat.sampling as sampling
+    import o3dheat.geometry.sampling as sampling
 
     m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 12)
     V, F = m.vertex.positions.numpy(), m.triangle.indices.numpy()
@@ -794,8 +794,8 @@ def test_a_point_cloud_is_reconstructed_once_per_chain_and_degenerate_clouds_are
     three points, flat for a reconstruction) ended in raw Qhull or geometry-central errors."""
     import logging
 
-    import o3dheat.sampling as sampling
-    import o3dheat.spectrum as S
+    import o3dheat.geometry.sampling as sampling
+    import o3dheat.spectral.spectrum as S
 
     S.clear_cache()
     calls = []
@@ -925,7 +925,7 @@ def test_tracks_on_a_mesh_of_two_parts():
     ({"variant": "nope"}, r"variant"),
 ])
 def test_tracks_refuses_bad_parameters_before_any_work(params, match, monkeypatch):
-    from o3dheat import heatflow, spectrum
+    from o3dheat.spectral import heatflow, spectrum
     from o3dheat_filters.tracks import TracksFilter
 
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("an eigensolve ran"))
@@ -938,7 +938,7 @@ def test_tracks_refuses_bad_parameters_before_any_work(params, match, monkeypatc
 
 
 def test_tracks_plan_and_missing_attribute_before_any_work(monkeypatch):
-    from o3dheat import spectrum
+    from o3dheat.spectral import spectrum
 
     mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 12)
     chain = flt.Chain([("scalar", {"kind": "height"}), ("tracks", {"attribute": "height", "times": [0.1, 0.5]})])

@@ -1,4 +1,4 @@
-"""The full heat kernel (o3dheat.heatflow, o3dheat.krylov) against the complete dense generalized
+"""The full heat kernel (o3dheat.spectral.heatflow, o3dheat.spectral.krylov) against the complete dense generalized
 eigendecomposition (scipy.linalg.eigh(L, W)), its identities, and bad input."""
 
 import numpy as np
@@ -7,10 +7,10 @@ import scipy.linalg as sla
 from conftest import grid, icosphere, irregular, torus
 
 import o3dheat
-from o3dheat import fem
 from o3dheat.errors import ConvergenceError, MeshError
-from o3dheat.heatflow import HeatFlow, heat_flow, shift
-from o3dheat.kernel import VARIANTS, mass_of
+from o3dheat.spectral import fem
+from o3dheat.spectral.heatflow import HeatFlow, heat_flow, shift
+from o3dheat.spectral.kernel import VARIANTS, mass_of
 
 TOL = 1e-8
 
@@ -276,7 +276,7 @@ def small_meshes(draw):
        seed=st.integers(0, 1000))
 def test_hypothesis_against_dense(mesh, variant, times, seed):
     V, F = mesh
-    prep = o3dheat.mesh.prepare((V, F))
+    prep = o3dheat.geometry.mesh.prepare((V, F))
     Vp, Fp = prep.V, prep.F
     L, W, lam, X = dense(Vp, Fp, variant)
     scale = 1.0 / max(lam.max(), 1e-12)  # times from 0 to 50 / λ_max ... 50 / λ_max * 1e4
@@ -306,7 +306,7 @@ def _sample(name):
 @pytest.mark.parametrize("name", ["airplane.obj", "bone.ply", "cube.obj", "cow.obj"])
 def test_real_files_agree_with_the_certified_spectral_kernel(name):
     mesh = _sample(name)
-    K = o3dheat.heat_kernel(mesh, k=min(60, len(o3dheat.mesh.prepare(mesh).V)))
+    K = o3dheat.heat_kernel(mesh, k=min(60, len(o3dheat.geometry.mesh.prepare(mesh).V)))
     V = o3dheat.as_arrays(mesh)[0]
     f = V[:, 1] + np.sin(4 * V[:, 0] / np.ptp(V[:, 0]))
     lk = K.spectrum.eigenvalues[-1]
@@ -357,14 +357,14 @@ def test_operators_built_elsewhere_without_null_space_or_with_a_dia_mass():
 def test_a_capped_basis_regenerates_the_same_vectors():
     import scipy.sparse as sp
 
-    from o3dheat.krylov import propagate
+    from o3dheat.spectral.krylov import propagate
 
     V, F = irregular()
     L, W, lam, X = dense(V, F, "weighted")
     Ls, Ws = fem.operators(V, F)[:2]
     taus = np.geomspace(1e-3, 1.0, 6) / lam[99]
     gamma = shift(taus.min(), taus.max())
-    solve = o3dheat.linalg.factorize(sp.csc_matrix(Ws + gamma * Ls)).solve
+    solve = o3dheat.spectral.linalg.factorize(sp.csc_matrix(Ws + gamma * Ls)).solve
     f = np.column_stack([V[:, 0] + np.sin(5 * V[:, 1]), np.cos(3 * V[:, 2]), np.ones(len(V))])
     null = (np.zeros(len(V), int), np.asarray(Ws.sum(axis=1)).ravel())
     full, a = propagate(solve, Ws, f, taus, gamma, null=null)
@@ -380,7 +380,7 @@ def test_a_capped_basis_regenerates_the_same_vectors():
 def test_an_analysis_of_another_pattern_is_not_used():
     import scipy.sparse as sp
 
-    from o3dheat.linalg import analyze, factorize
+    from o3dheat.spectral.linalg import analyze, factorize
 
     A = sp.diags([np.full(49, -1.0), np.full(50, 3.0), np.full(49, -1.0)], [-1, 0, 1], format="csc")
     B = sp.diags([np.full(48, -1.0), np.full(50, 3.0), np.full(48, -1.0)], [-2, 0, 2], format="csc")

@@ -55,7 +55,7 @@ def test_write_is_atomic(tmp_path, mesh, monkeypatch, binary):
         raise OSError("disk full")
 
     if binary:
-        monkeypatch.setattr(o3dheat.io, "_write_binary_ply", boom)
+        monkeypatch.setattr(o3dheat.io.meshes, "_write_binary_ply", boom)
     else:
         monkeypatch.setattr(plyfile.PlyData, "write", boom)
     with pytest.raises(OSError):
@@ -668,11 +668,11 @@ def test_binary_ply_is_plyfiles_own_bytes_and_reads_back_the_same_both_ways(tmp_
     fast, slow = tmp_path / "fast.ply", tmp_path / "slow.ply"
     write_geometry(fast, geometry)
     with monkeypatch.context() as m:
-        m.setattr(o3dheat.io, "_write_binary_ply", lambda fh, ply, vert, F: ply.write(fh))
+        m.setattr(o3dheat.io.meshes, "_write_binary_ply", lambda fh, ply, vert, F: ply.write(fh))
         write_geometry(slow, geometry)
     assert fast.read_bytes() == slow.read_bytes()
     a = o3dheat.io.read_geometry(fast)
-    monkeypatch.setattr(o3dheat.io, "_TRIANGLE_LISTS", {})  # plyfile's face-by-face reading
+    monkeypatch.setattr(o3dheat.io.meshes, "_TRIANGLE_LISTS", {})  # plyfile's face-by-face reading
     b = o3dheat.io.read_geometry(fast)
     attrs = (lambda g: g.vertex) if faces else (lambda g: g.point)
     assert sorted(attrs(a)) == sorted(attrs(b))
@@ -915,8 +915,8 @@ def test_colours_are_stored_once(tmp_path, colors, stored, binary):
 def test_formats_are_one_table_that_reading_and_batches_follow(tmp_path, monkeypatch):
     """Issue 23: one READERS/WRITERS table: a reader added there is what read_mesh and batches
     use; the batches' output suffixes are the writers'."""
-    import o3dheat.batch as batch
-    import o3dheat.io as io
+    import o3dheat.pipelines.batch as batch
+    from o3dheat.io import meshes as io
 
     assert batch.SUFFIXES == tuple(io.WRITERS) and set(io.WRITERS) <= set(io.READERS)
     calls = []

@@ -1,4 +1,4 @@
-"""o3dheat.kernel: the paper's properties (§2.1-§3.2) as identities."""
+"""o3dheat.spectral.kernel: the paper's properties (§2.1-§3.2) as identities."""
 
 import numpy as np
 import pytest
@@ -380,7 +380,7 @@ def _certificate_meshes():
 @pytest.mark.parametrize("variant", list(o3dheat.VARIANTS))
 def test_truncation_certificates_hold_against_complete_spectra(variant):
     for name, (V, F) in _certificate_meshes().items():
-        n_ref = len(o3dheat.mesh.prepare((V, F)).V)
+        n_ref = len(o3dheat.geometry.mesh.prepare((V, F)).V)
         full = o3dheat.heat_kernel((V, F), k=n_ref, variant=variant)
         part = o3dheat.heat_kernel((V, F), k=30, variant=variant)
         t = np.array([0.0, 1e-3, 1e-2, 0.1, 1.0, 40.0]) / part.spectrum.eigenvalues[-1]
@@ -393,7 +393,7 @@ def test_truncation_certificates_hold_against_complete_spectra(variant):
         nf = np.sqrt(np.einsum("ic,ic->c", f, W @ f))[:, None]
         assert np.all(err / nf <= bound * (1 + 1e-9) + 1e-12), (name, (err / nf - bound).max())  # = at t = 0
         assert bound[:, -1].max() < 1e-7  # late: exp(-20)
-        for form in o3dheat.kernel.HKS_FORMS:
+        for form in o3dheat.spectral.kernel.HKS_FORMS:
             h, hb = part.hks(t, form=form, return_bound=True)
             d = full.hks(t, form=form) - h
             slack = 1e-9 * np.abs(full.hks(t, form=form)).max()

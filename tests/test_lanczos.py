@@ -1,13 +1,13 @@
-"""o3dheat.lanczos: the block shift-invert Lanczos against dense LAPACK."""
+"""o3dheat.spectral.lanczos: the block shift-invert Lanczos against dense LAPACK."""
 
 import numpy as np
 import pytest
 from conftest import icosphere, irregular, torus
 
 import o3dheat
-from o3dheat import fem
-from o3dheat.lanczos import block_lanczos
-from o3dheat.linalg import factorize
+from o3dheat.spectral import fem
+from o3dheat.spectral.lanczos import block_lanczos
+from o3dheat.spectral.linalg import factorize
 
 
 def operators(mesh):
@@ -92,7 +92,7 @@ def test_results_do_not_depend_on_the_thread_count(monkeypatch):
 
 
 def test_a_warm_start_block_gives_the_same_spectrum_with_fewer_solves():
-    from o3dheat import sampling
+    from o3dheat.geometry import sampling
 
     V, F = icosphere(4)
     ref = o3dheat.eigensolve((V, F), k=40, method="dense")

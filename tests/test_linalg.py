@@ -1,4 +1,4 @@
-"""o3dheat.linalg: CHOLMOD through ctypes (threaded block solves), its fallbacks."""
+"""o3dheat.spectral.linalg: CHOLMOD through ctypes (threaded block solves), its fallbacks."""
 
 import gc
 import sys
@@ -9,9 +9,10 @@ import pytest
 import scipy.sparse as sp
 from conftest import irregular
 
-import o3dheat.linalg as la
-from o3dheat import fem, parallel
+import o3dheat.spectral.linalg as la
+from o3dheat import parallel
 from o3dheat.errors import SolverError
+from o3dheat.spectral import fem
 
 needs_cholmod = pytest.mark.skipif("cholmod" not in la.available_backends(), reason="scikit-sparse not installed")
 
@@ -222,7 +223,7 @@ def test_the_input_matrix_is_not_reordered():
 def test_memory_is_checked_before_factorizing_and_out_of_memory_never_falls_back(monkeypatch):
     import scipy.sparse as sp
 
-    import o3dheat.linalg as la
+    import o3dheat.spectral.linalg as la
 
     A = sp.diags([np.full(99, -1.0), np.full(100, 3.0), np.full(99, -1.0)], [-1, 0, 1], format="csc")
     monkeypatch.setattr(la, "memory_limits", lambda: {"system": 1000})  # bytes
@@ -249,7 +250,7 @@ def test_available_memory_sees_an_address_space_limit():
     import subprocess
     import sys
 
-    code = ("import resource, o3dheat.linalg as la; resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30));"
+    code = ("import resource, o3dheat.spectral.linalg as la; resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30));"
             "m = la.available_memory(); print(m is not None and m < 4 * 2**30)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.stdout.strip() == "True", out.stderr[-500:]
@@ -351,7 +352,7 @@ def test_cholespy_memory_is_estimated_before_it_starts(monkeypatch, binding):
     a mesh bound otherwise), and refused with OutOfMemory before cholespy is called."""
     import scipy.sparse as sp
 
-    import o3dheat.linalg as la
+    import o3dheat.spectral.linalg as la
 
     pytest.importorskip("cholespy")
     import cholespy
@@ -370,7 +371,7 @@ def test_cholespy_memory_is_estimated_before_it_starts(monkeypatch, binding):
     # a mesh Laplacian: the estimate covers what cholespy was measured to use (38-60 B per n log2 n)
     from conftest import icosphere
 
-    import o3dheat.fem as fem
+    import o3dheat.spectral.fem as fem
 
     V, F = icosphere(4)
     L, B, _ = fem.operators(V, F, "consistent")
@@ -385,7 +386,7 @@ def test_the_address_space_limit_keeps_a_reserve_per_thread():
     import subprocess
     import sys
 
-    code = ("import resource, o3dheat.linalg as la, o3dheat.parallel as p;"
+    code = ("import resource, o3dheat.spectral.linalg as la, o3dheat.parallel as p;"
             "resource.setrlimit(resource.RLIMIT_AS, (6 * 2**30, 6 * 2**30));"
             "room = la.memory_limits()['address space']; left = 6 * 2**30 - la._statm(0);"
             "print(abs(left - room - la.THREAD_ADDRESS_SPACE * (p.get_threads() + 1)) < 64 * 2**20)")

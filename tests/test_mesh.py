@@ -1,4 +1,4 @@
-"""o3dheat.mesh: conversion, the validation report, repairs, and bad input."""
+"""o3dheat.geometry.mesh: conversion, the validation report, repairs, and bad input."""
 
 import logging
 
@@ -8,7 +8,7 @@ import pytest
 from conftest import grid, icosphere, torus
 
 import o3dheat
-from o3dheat.mesh import prepare
+from o3dheat.geometry.mesh import prepare
 
 
 def as_tensor(V, F):
@@ -247,7 +247,7 @@ def test_weld_leaves_unreferenced_copies_and_clean_meshes(sphere3):
 
 @pytest.mark.parametrize("high", [5, 1000, 10**7])  # 10**7: three columns do not fit one int64 key
 def test_unique_rows_matches_numpy(high):
-    from o3dheat._tables import unique_rows as _unique_rows
+    from o3dheat.geometry._tables import unique_rows as _unique_rows
 
     A = np.random.default_rng(1).integers(0, high, (500, 3))
     A[300:400] = A[:100]
@@ -385,7 +385,7 @@ def test_check_mesh_validates_shapes_exactly_as_eigensolve(V, F, message):
 
 
 def test_first_copies_match_brute_force_even_when_the_hash_collides_everywhere():
-    from o3dheat._tables import first_copies, first_faces
+    from o3dheat.geometry._tables import first_copies, first_faces
 
     g = np.linspace(-1, 1, 41)  # grid-like coordinates: many zero low bits (a weak hash collides)
     P = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
@@ -505,7 +505,7 @@ def test_report_topology_is_that_of_the_faces_used(caplog):
 
 def test_mesh_likes_are_meshes_everywhere():
     """A repair's result went to critical_points, a resampling's to the filters: refused."""
-    from o3dheat.sampling import subdivide
+    from o3dheat.geometry.sampling import subdivide
 
     V, F = pinched_vertex()
     r = o3dheat.repair((V, F))
@@ -517,7 +517,7 @@ def test_mesh_likes_are_meshes_everywhere():
     assert s.eigenvectors.shape == (len(res.V), 4)
     np.testing.assert_array_equal(o3dheat.as_arrays(res)[1], res.F)
     assert o3dheat.check_mesh(r).ok
-    assert o3dheat.mesh.mesh_of(r) is r.mesh
+    assert o3dheat.geometry.mesh.mesh_of(r) is r.mesh
 
     class Wrapper:  # any object with a mesh attribute
         def __init__(self, mesh):
@@ -541,7 +541,7 @@ _DEGENERATE_CLOUDS = {
 @pytest.mark.parametrize("case", list(_DEGENERATE_CLOUDS))
 def test_degenerate_point_clouds_are_named(case):
     """They ended in raw Qhull (QH6239) or geometry-central (GC_SAFETY_ASSERT) errors."""
-    from o3dheat.mesh import check_points
+    from o3dheat.geometry.mesh import check_points
 
     P, why = _DEGENERATE_CLOUDS[case]
     for planar in (True, False):
@@ -550,7 +550,7 @@ def test_degenerate_point_clouds_are_named(case):
 
 
 def test_a_flat_patch_is_a_surface_for_point_operators_not_for_reconstruction():
-    from o3dheat.mesh import check_points
+    from o3dheat.geometry.mesh import check_points
 
     flat = np.c_[_RNG.random((200, 2)), np.zeros(200)]
     np.testing.assert_array_equal(check_points(flat), flat)

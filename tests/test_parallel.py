@@ -121,7 +121,7 @@ def test_pool_works_after_fork():
 def test_reductions_do_not_depend_on_the_thread_count(monkeypatch):
     import scipy.sparse as sp
 
-    from o3dheat.lanczos import _Rows
+    from o3dheat.spectral.lanczos import _Rows
 
     monkeypatch.setattr(parallel, "CHUNK", 64)
     rng = np.random.default_rng(0)

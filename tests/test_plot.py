@@ -6,7 +6,7 @@ import pytest
 from conftest import glued_spheres, icosphere, torus
 
 import o3dheat
-import o3dheat.plot as plot
+import o3dheat.visualization.plot as plot
 
 needs_renderer = pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
 
@@ -517,7 +517,7 @@ def test_an_offset_field_is_not_taken_for_flat():
     flat, with no critical points: flatness is now relative to the field's variation."""
     import open3d as o3d
 
-    from o3dheat.plot import drawn_critical_points
+    from o3dheat.visualization.plot import drawn_critical_points
 
     m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
     z = m.vertex.positions.numpy()[:, 2].astype(float)

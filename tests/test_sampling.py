@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import o3dheat
-from o3dheat.sampling import decimate, nearest, reconstruct, transfer
+from o3dheat.geometry.sampling import decimate, nearest, reconstruct, transfer
 from o3dheat.topology import Surface
 
 
@@ -81,7 +81,7 @@ def test_transfer_is_the_identity_on_the_same_mesh():
     V, F = irregular()
     f = np.random.default_rng(2).standard_normal((len(V), 3))
     assert np.allclose(transfer(f, (V, F), (V, F)), f, atol=1e-10)
-    from o3dheat.sampling import subdivide
+    from o3dheat.geometry.sampling import subdivide
 
     s = subdivide((V, F), 2)  # its vertices lie on the source surface: linear fields transfer exactly
     assert np.allclose(transfer(V, (V, F), s), s.V, atol=1e-12)
@@ -107,7 +107,7 @@ def test_decimation_map():
 
 
 def test_remesh_anisotropic_jitter_subdivide():
-    from o3dheat.sampling import anisotropic, jitter, remesh, resample, subdivide
+    from o3dheat.geometry.sampling import anisotropic, jitter, remesh, resample, subdivide
 
     V, F = icosphere(3)
     r = remesh((V, F), 0.08)
@@ -169,7 +169,7 @@ def jitter_meshes():
 def test_jitter_never_folds_the_sample_meshes(jitter_meshes, name):
     import json
 
-    from o3dheat.sampling import jitter
+    from o3dheat.geometry.sampling import jitter
 
     V, F = jitter_meshes[name]
     for amount in (0.1, 0.3, 1.0, 3.0):
@@ -190,7 +190,7 @@ def test_jitter_never_folds_the_sample_meshes(jitter_meshes, name):
 
 
 def test_jitter_limiter_is_exercised(jitter_meshes, monkeypatch):
-    import o3dheat.sampling as sampling
+    import o3dheat.geometry.sampling as sampling
 
     V, F = jitter_meshes["torus"]
     free = sampling.jitter((V, F), 0.1, 0)  # a regular mesh and a small amount: nothing to limit
@@ -211,7 +211,7 @@ def test_jitter_limiter_is_exercised(jitter_meshes, monkeypatch):
 def test_jitter_degenerate_and_unreferenced_input():
     from conftest import grid
 
-    from o3dheat.sampling import jitter
+    from o3dheat.geometry.sampling import jitter
 
     V, F = grid(1.0, 1.0, 8, 8)
     V = np.concatenate([V, [[5.0, 5.0, 5.0]]])  # an unreferenced vertex
@@ -250,7 +250,7 @@ def _random_disk(seed, n, lift):
 @given(seed=st.integers(0, 2**16), n=st.integers(4, 60), lift=st.sampled_from(["flat", "smooth", "rough"]),
        amount=st.floats(0, 10), jseed=st.integers(0, 2**16))
 def test_jitter_random_disks_never_fold(seed, n, lift, amount, jseed):
-    from o3dheat.sampling import jitter
+    from o3dheat.geometry.sampling import jitter
 
     V, F = _random_disk(seed, n, lift)
     r = jitter((V, F), amount, jseed)
@@ -266,12 +266,12 @@ def test_a_remeshing_too_fine_is_refused_at_once_with_its_estimate():
 
     import open3d as o3d
 
-    from o3dheat import sampling
-    from o3dheat.sampling import anisotropic, remesh
+    from o3dheat.geometry import sampling
+    from o3dheat.geometry.sampling import anisotropic, remesh
 
     # in a process of its own: pymeshlab, once started, cannot be interrupted (minutes of work)
     script = ("import open3d as o3d, o3dheat\n"
-              "from o3dheat.sampling import remesh\n"
+              "from o3dheat.geometry.sampling import remesh\n"
               "try:\n"
               "    remesh(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20), target_edge_length=1e-3)\n"
               "except o3dheat.MeshError as e:\n"
@@ -307,7 +307,7 @@ def test_reconstructing_a_degenerate_cloud_is_a_named_error():
     """Issue 22: collinear, coincident, too few or flat points ended in raw Qhull/Open3D errors."""
     import open3d as o3d
 
-    from o3dheat.sampling import reconstruct
+    from o3dheat.geometry.sampling import reconstruct
 
     rng = np.random.default_rng(0)
     for msg, P in {"all coincide": np.ones((50, 3)),

@@ -1,4 +1,4 @@
-"""o3dheat.spectrum: analytic spectra, B-orthonormality, backends, caching, reproducibility."""
+"""o3dheat.spectral.spectrum: analytic spectra, B-orthonormality, backends, caching, reproducibility."""
 
 import logging
 
@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import o3dheat
-from o3dheat.linalg import available_backends
+from o3dheat.spectral.linalg import available_backends
 
 
 def sphere_truth(k, R=1.0):
@@ -106,7 +106,7 @@ def test_cholmod_is_installed_by_setup():
 
 
 def test_fallback_warns(monkeypatch, irregular_mesh, caplog):
-    import o3dheat.linalg as la
+    import o3dheat.spectral.linalg as la
 
     def broken(A, mode, analysis=None):
         raise ImportError("no CHOLMOD here")
@@ -207,7 +207,7 @@ def test_bad_sigma_and_mass():
 
 
 def test_dense_refused_when_too_large(monkeypatch):
-    import o3dheat.spectrum as S
+    import o3dheat.spectral.spectrum as S
 
     V, F = icosphere(2)  # 162 vertices
     ref = o3dheat.eigensolve((V, F), k=100).eigenvalues  # k > n/2: dense
@@ -239,7 +239,7 @@ def test_eigensolve_operators_matches_eigensolve():
     import scipy.sparse as sp
     from conftest import icosphere
 
-    from o3dheat.spectrum import eigensolve_operators
+    from o3dheat.spectral.spectrum import eigensolve_operators
 
     V, F = icosphere(3)
     ref = o3dheat.eigensolve((V, F), k=12)
@@ -253,7 +253,7 @@ def test_eigensolve_operators_matches_eigensolve():
 
 
 def test_auto_method_follows_the_measured_crossovers():
-    from o3dheat.spectrum import _choose_method
+    from o3dheat.spectral.spectrum import _choose_method
 
     assert _choose_method("auto", 1000, 10) == "dense"
     assert _choose_method("auto", 5000, 30) == "arpack"
@@ -287,7 +287,7 @@ def test_small_meshes_every_method_matches_dense(seed, n, frac, method):
 
 
 def test_lanczos_failure_falls_back(monkeypatch, irregular_mesh, caplog):
-    import o3dheat.spectrum as S
+    import o3dheat.spectral.spectrum as S
     from o3dheat.errors import ConvergenceError
 
     def broken(*a, **kw):
@@ -422,7 +422,7 @@ def test_one_cache_bounded_cleaned_and_in_the_platform_folder(tmp_path, monkeypa
     import os
     import time
 
-    import o3dheat.spectrum as S
+    import o3dheat.spectral.spectrum as S
 
     monkeypatch.delenv("O3DHEAT_CACHE", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
@@ -447,12 +447,12 @@ def test_one_cache_bounded_cleaned_and_in_the_platform_folder(tmp_path, monkeypa
     # the filters, the robust point-cloud operators and user code share the one memory cache
     S.clear_cache()
     a = S.shared_eigensolve(V, F, k=6)
-    assert o3dheat.filters.shared_spectrum(V, F, k=6) is a and len(S._MEMORY) == 1
+    assert o3dheat.pipelines.filters.shared_spectrum(V, F, k=6) is a and len(S._MEMORY) == 1
 
 
 def test_eigensolve_refuses_what_does_not_fit_in_memory(monkeypatch, irregular_mesh):
-    import o3dheat.linalg as la
-    import o3dheat.spectrum as S
+    import o3dheat.spectral.linalg as la
+    import o3dheat.spectral.spectrum as S
 
     monkeypatch.setattr(la, "memory_limits", lambda: {"system": 10_000})  # bytes
     monkeypatch.setattr(S, "available_memory", lambda: 10_000)
@@ -463,7 +463,7 @@ def test_eigensolve_refuses_what_does_not_fit_in_memory(monkeypatch, irregular_m
 
 
 def test_the_memory_cache_is_bounded_in_bytes_and_keeps_the_newest(monkeypatch):
-    import o3dheat.spectrum as S
+    import o3dheat.spectral.spectrum as S
 
     S.clear_cache()
     meshes = [icosphere(2), icosphere(3), torus()]
@@ -487,7 +487,7 @@ def test_the_memory_cache_is_bounded_in_bytes_and_keeps_the_newest(monkeypatch):
 
 
 def test_the_supernodal_path_gives_the_same_spectrum(monkeypatch):
-    import o3dheat.linalg as la
+    import o3dheat.spectral.linalg as la
 
     V, F = torus()
     ref = o3dheat.eigensolve((V, F), k=40, method="lanczos")  # simplicial LDLᵀ (small mesh)
@@ -514,7 +514,7 @@ def test_multiple_eigenvalues_have_one_basis_whatever_the_solver():
     for s in others:
         np.testing.assert_allclose(s.eigenvectors, ref.eigenvectors, atol=1e-7)
     # a basis rotated inside the eigenspace by hand is brought back to the same one
-    from o3dheat.spectrum import _canonical_bases
+    from o3dheat.spectral.spectrum import _canonical_bases
     Q = np.linalg.qr(np.random.default_rng(3).standard_normal((3, 3)))[0]
     X = ref.eigenvectors.copy()
     X[:, 1:4] = X[:, 1:4] @ Q
@@ -530,7 +530,7 @@ def test_the_cache_reads_only_its_own_writes(tmp_path, irregular_mesh, caplog, m
     import os
     import shutil
 
-    import o3dheat.spectrum as S
+    import o3dheat.spectral.spectrum as S
 
     V, F = irregular_mesh
     ref = o3dheat.eigensolve((V, F), k=10, cache=tmp_path, method="arpack")

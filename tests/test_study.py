@@ -6,7 +6,7 @@ import pytest
 from conftest import icosphere, torus
 
 import o3dheat
-from o3dheat.study import COLUMNS, DESCRIPTORS, robustness_study
+from o3dheat.pipelines.study import COLUMNS, DESCRIPTORS, robustness_study
 
 KERNELS = tuple(o3dheat.VARIANTS)  # the default of robustness_study: every variant
 
@@ -55,7 +55,7 @@ def test_dask_gives_the_same_table(sequential, tmp_path):
     pytest.importorskip("distributed")
     from distributed import Client
 
-    from o3dheat.cluster import local_cluster
+    from o3dheat.pipelines.cluster import local_cluster
 
     _, ref = sequential
     with local_cluster(2) as cluster, Client(cluster) as client:
@@ -70,8 +70,8 @@ def test_resume_computes_only_missing_tasks(sequential, tmp_path, monkeypatch):
     shutil.copytree(out, tmp_path / "s")
     (tmp_path / "s" / "tasks" / "torus__jit.csv").unlink()  # an interrupted run
     calls = []
-    real = o3dheat.study._task
-    monkeypatch.setattr(o3dheat.study, "_task", lambda *a: calls.append(a[:2]) or real(*a))
+    real = o3dheat.pipelines.study._task
+    monkeypatch.setattr(o3dheat.pipelines.study, "_task", lambda *a: calls.append(a[:2]) or real(*a))
     t = robustness_study(MESHES, RES, out=tmp_path / "s", scheduler="sequential", progress=False, **SMALL)
     assert calls == [("torus", "jit")]
     pd.testing.assert_frame_equal(t, ref, check_exact=True)
@@ -132,7 +132,7 @@ def test_linear_kernel_discrepancy_is_not_the_vertex_ratio(sequential):
 
 
 def test_study_kernels_keep_constants():
-    from o3dheat.study import _descriptors
+    from o3dheat.pipelines.study import _descriptors
 
     V, F = icosphere(2)
     V = V * [1.3, 1.0, 0.8]
@@ -202,7 +202,7 @@ def test_one_kernel_name_is_a_list_of_one():
 
 
 def test_dask_starts_the_largest_resamplings_first():
-    from o3dheat.study import _cost
+    from o3dheat.pipelines.study import _cost
 
     specs = {"sub": {"kind": "subdivide"}, "aniso": {"kind": "anisotropic"}, "jit": {"kind": "jitter"},
              "rem": {"kind": "remesh", "edge_factor": 1.5}, "dec": {"kind": "decimate", "reduction": 0.8},
@@ -212,8 +212,9 @@ def test_dask_starts_the_largest_resamplings_first():
 
 
 def test_exact_method_smooths_with_the_full_kernel(monkeypatch):
-    from o3dheat import sampling, spectrum
-    from o3dheat.study import _descriptors
+    from o3dheat.geometry import sampling
+    from o3dheat.pipelines.study import _descriptors
+    from o3dheat.spectral import spectrum
 
     V, F = icosphere(2)
     table = robustness_study({"s": (V, F)}, {"dec": {"kind": "decimate", "reduction": 0.5}}, kernels=["weighted"],
@@ -238,14 +239,14 @@ def test_exact_method_smooths_with_the_full_kernel(monkeypatch):
 
 
 FAILING = '''import sys
-import o3dheat.study
+import o3dheat.pipelines.study
 
 
 def failing(*args, **kwargs):
     raise o3dheat.SolverError("no spectrum here")
 
 
-o3dheat.study._descriptors = failing  # at the top level: in the workers too (they run this script again)
+o3dheat.pipelines.study._descriptors = failing  # at the top level: in the workers too (they run this script again)
 
 if __name__ == "__main__":
     from o3dheat.cli import main
@@ -315,7 +316,7 @@ def test_bools_strings_and_negatives_are_refused_before_any_work():
 
 def _tracks(last, positions, times=(1.0, 10.0, 100.0)):
     """Maximum tracks born at scale 0 on vertices 0, 1, ... living to ``last``."""
-    from o3dheat.tracking import Tracks
+    from o3dheat.topology.tracking import Tracks
 
     p, T = len(last), len(times)
     vertex = np.where(np.arange(T)[None, :] <= np.asarray(last)[:, None], np.arange(p)[:, None], -1)
@@ -327,7 +328,7 @@ def _tracks(last, positions, times=(1.0, 10.0, 100.0)):
 def test_track_lifetime_errors_by_hand():
     """Issue 24: the track_lifetime error on hand-made tracks, times 1, 10, 100. Reference: A lives
     to the end, B dies after scale 0, far from A; resampling: A' dies after scale 1, B' lives on."""
-    from o3dheat.study import _lifetime_errors
+    from o3dheat.pipelines.study import _lifetime_errors
 
     P = [[0.0, 0, 0], [1.0, 0, 0]]
     ref, res = _tracks([2, 0], P), _tracks([1, 2], P)
@@ -343,9 +344,9 @@ def test_track_lifetime_on_a_bunny():
     """The extrema of the bunny's smoothed height live about as long on its resamplings: errors in
     [0, 1], one row per scale, zero for an identical resampling."""
     import o3dheat.demo
-    import o3dheat.sampling
+    import o3dheat.geometry.sampling
 
-    m = o3dheat.sampling.decimate(o3dheat.demo.sample_mesh("bunny"), target_faces=6000).mesh
+    m = o3dheat.geometry.sampling.decimate(o3dheat.demo.sample_mesh("bunny"), target_faces=6000).mesh
     res = {"same": {"kind": "jitter", "amount": 0.0}, "sub": "subdivide", "dec": {"kind": "decimate", "reduction": 0.5}}
     t = robustness_study({"b": m}, res, kernels=["weighted"], descriptors=["track_lifetime"], scales=6, k=30,
                          scheduler="sequential", progress=False)

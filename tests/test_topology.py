@@ -436,8 +436,8 @@ def test_critical_points_filter_on_split_mesh():
     mw.vertex.positions = o3d.core.Tensor(V)
     mw.triangle.indices = o3d.core.Tensor(F.astype(np.int32))
     for kw in ({}, {"delta": 0.05}):
-        a = o3dheat.filters.apply(m, "critical_points", attribute="positions", column=0, **kw)
-        b = o3dheat.filters.apply(mw, "critical_points", attribute="positions", column=0, **kw)
+        a = o3dheat.pipelines.filters.apply(m, "critical_points", attribute="positions", column=0, **kw)
+        b = o3dheat.pipelines.filters.apply(mw, "critical_points", attribute="positions", column=0, **kw)
         np.testing.assert_array_equal(a.vertex["positions_critical"].numpy(),
                                       b.vertex["positions_critical"].numpy()[F].reshape(-1))
 
@@ -738,7 +738,7 @@ def test_compiled_loops_are_cached():
     so that only the first call of an installation compiles."""
     from pathlib import Path
 
-    from o3dheat.topology import _kernel
+    from o3dheat.topology.critical import _kernel
 
     V, F = icosphere(1)
     o3dheat.persistence((V, F), V[:, 0])
@@ -771,12 +771,12 @@ def test_compiled_in_this_process_counts_cache_misses(monkeypatch):
     import types
 
     import o3dheat._jit as J
-    import o3dheat.topology as T
+    import o3dheat.topology.critical as T
 
     def fake(misses):
         return types.SimpleNamespace(stats=types.SimpleNamespace(cache_misses={("sig",): misses}))
 
-    mod = "o3dheat.topology"
+    mod = "o3dheat.topology.critical"
     monkeypatch.setattr(J, "_COMPILED", {(mod, "a"): fake(0), (mod, "b"): fake(0), ("other", "c"): fake(1)})
     assert T.compiled_in_this_process() is False  # another module's compilation is not this one's
     monkeypatch.setattr(J, "_COMPILED", {(mod, "a"): fake(0), (mod, "b"): fake(1)})
@@ -788,8 +788,8 @@ def test_warm_up_loads_every_compiled_loop():
     import subprocess
     import sys
 
-    code = ("import o3dheat.topology as T, o3dheat._jit as J; T.warm_up(); "
-            "print(sorted(name for mod, name in J._COMPILED if mod == 'o3dheat.topology'))")
+    code = ("import o3dheat.topology.critical as T, o3dheat._jit as J; T.warm_up(); "
+            "print(sorted(name for mod, name in J._COMPILED if mod == 'o3dheat.topology.critical'))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == str(sorted(["_k_arcs", "_k_classify", "_k_edges", "_k_fans", "_k_sweeps"]))
 

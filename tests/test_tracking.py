@@ -1,4 +1,4 @@
-"""o3dheat.tracking: critical points followed across scales (issue 24)."""
+"""o3dheat.topology.tracking: critical points followed across scales (issue 24)."""
 
 import numpy as np
 import open3d as o3d
@@ -93,7 +93,7 @@ def test_bad_input_is_named(bad, msg):
 def test_feature_approx_picks_the_long_lived_critical_points():
     """Issue 24: the lifetime criterion beside δ-persistence: a bump that dies early under the
     heat flow is not a feature with lifetime past its death; it is with a shorter lifetime."""
-    import o3dheat.filters as flt
+    import o3dheat.pipelines.filters as flt
 
     m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40)
     V = m.vertex.positions.numpy().astype(float)
@@ -255,7 +255,7 @@ def test_chi_at_every_scale_on_genus_two():
 def test_lifetime_features_are_critical_points_of_the_field_with_the_truncated_kernel_too(monkeypatch):
     """Found in review: with method="spectral" the first tracked field was the truncated kernel's
     projection at t = 0, not the field: some features were not critical points of it."""
-    import o3dheat.filters as flt
+    import o3dheat.pipelines.filters as flt
 
     m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
     V = m.vertex.positions.numpy().astype(float)

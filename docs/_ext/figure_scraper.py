@@ -1,6 +1,6 @@
 """A sphinx-gallery image scraper for matplotlib Figures made without pyplot.
 
-o3dheat.plot returns ``matplotlib.figure.Figure`` objects that pyplot does not know (no GUI
+o3dheat.visualization.plot returns ``matplotlib.figure.Figure`` objects that pyplot does not know (no GUI
 backend, no global state), so sphinx-gallery's own matplotlib scraper, which asks pyplot for its
 figures, misses them. This one saves every Figure that a code block leaves in the example's
 namespace (as a variable, or in a list, tuple or dict variable), once, in the order they appear,

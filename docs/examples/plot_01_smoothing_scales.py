@@ -16,7 +16,7 @@ import numpy as np
 
 import o3dheat
 from o3dheat.demo import default_mesh
-from o3dheat.sampling import decimate
+from o3dheat.geometry.sampling import decimate
 
 bunny, _ = default_mesh()
 mesh = decimate(bunny, reduction=0.8).mesh          # about 5,600 vertices
@@ -42,7 +42,7 @@ print("paper grid:", np.round(t_paper[[0, -1]], 6), " log grid:", np.round(t_log
 # ``Φ_t f`` on the log grid, with level sets and critical points (red maxima, blue minima,
 # green saddles):
 F = K.smooth(f, t_log)
-fig = o3dheat.plot.fields(mesh, F, titles=[f"t = {t:.2g}" for t in t_log], ncols=3, up="y",
+fig = o3dheat.visualization.plot.fields(mesh, F, titles=[f"t = {t:.2g}" for t in t_log], ncols=3, up="y",
                           label="Φ_t f")
 
 # %%

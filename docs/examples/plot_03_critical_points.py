@@ -13,7 +13,7 @@ import numpy as np
 
 import o3dheat
 from o3dheat.demo import default_mesh
-from o3dheat.sampling import decimate
+from o3dheat.geometry.sampling import decimate
 
 bunny, _ = default_mesh()
 mesh = decimate(bunny, reduction=0.8).mesh
@@ -30,13 +30,13 @@ print(cp)                                  # M − s + m = χ = 2 for the (close
 # born at a minimum and merged at a saddle (dimension 0), or a loop born at a saddle and filled in
 # at a maximum (dimension 1). :func:`o3dheat.persistence` stores the latter as (maximum, saddle)
 # pairs of the superlevel sets, which would lie below the diagonal;
-# :func:`o3dheat.plot.persistence_diagram` draws them as the sublevel sets' (saddle, maximum),
+# :func:`o3dheat.visualization.plot.persistence_diagram` draws them as the sublevel sets' (saddle, maximum),
 # above it like the others. Noise makes many short-lived pairs near the diagonal, the shape's
 # features lie far from it; the classes that never die (the global minimum and maximum of the
 # closed bunny) are on the row ∞.
 d = o3dheat.persistence(mesh, f)
 print(d)
-diagram = o3dheat.plot.persistence_diagram(d, f, title="persistence pairs")
+diagram = o3dheat.visualization.plot.persistence_diagram(d, f, title="persistence pairs")
 
 # %%
 # δ-simplification and the feature-driven approximation
@@ -54,7 +54,7 @@ K = o3dheat.heat_kernel(mesh, k=100)
 t = K.scales(10, grid="log")[3]
 glob_all, _ = o3dheat.feature_driven(K, f, A_all, t)
 glob, loc = o3dheat.feature_driven(K, f, A, t)
-fig = o3dheat.plot.fields(mesh, np.stack([f, glob_all, glob, loc], axis=1),
+fig = o3dheat.visualization.plot.fields(mesh, np.stack([f, glob_all, glob, loc], axis=1),
                           titles=["f", "Φ_t(pr_A f), A = all", "Φ_t(pr_A f), A = simplified",
                                   "local component f − Φ_t(pr_A f)"],
                           shared_range=False, ncols=2, up="y")

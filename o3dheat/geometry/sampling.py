@@ -1,0 +1,757 @@
+"""Samplings of a surface and the transfer of functions between them.
+
+Resamplings (each returns a :class:`Resampled`: a new tensor mesh plus what relates it to its
+source; all deterministic, seeded where random):
+
+* :func:`decimate`: quadric decimation (fast-simplification), curvature-adaptive, with the map
+  from source vertices to decimated vertices (its collapse replay);
+* :func:`remesh`: isotropic explicit remeshing (pymeshlab), a uniform sampling;
+* :func:`anisotropic`: one half of the surface coarse and the other fine (pymeshlab remeshing of
+  each half), the strongly non-uniform density of the paper's irregular examples;
+* :func:`jitter`: vertices moved at random in their tangent planes, no face folded;
+* :func:`subdivide`: midpoint (same surface) or Loop subdivision.
+
+Transfers: :func:`transfer` evaluates the PL function of one sampling at the vertices of another
+(barycentric interpolation at the closest surface point), :func:`nearest` takes the nearest
+sample. Point clouds: :func:`reconstruct` builds a mesh through points.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from o3dheat import checks
+from o3dheat.errors import MeshError
+
+from ._tables import degenerate, non_manifold_edge_faces, non_manifold_vertex_mask, unique_rows, vertex_normals
+from .mesh import as_arrays, check_points, repair
+
+__all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
+           "reconstruct", "transfer", "nearest", "point_arrays", "MIN_FACES", "REMESH_MAX_FACES"]
+
+log = logging.getLogger("o3dheat")
+
+
+@dataclass(frozen=True)
+class Resampled:
+    """A new sampling of a surface.
+
+    Attributes
+    ----------
+    V : (r, 3) float64 ndarray
+    F : (m, 3) int64 ndarray
+    kind : str
+        "decimate", "remesh", "anisotropic", "jitter" or "subdivide".
+    params : dict
+        The parameters used.
+    vertex_map : (n,) int64 ndarray or None
+        For each source vertex, the new vertex it became (decimate: the vertex it collapsed into,
+        -1 when it was removed with a non-manifold face; jitter: the identity; subdivide: the same
+        index, the new vertices come after). None when no such map exists (remeshing).
+
+    Examples
+    --------
+    Every function of this module returns one; every o3dheat function takes one as a mesh:
+
+    >>> import open3d as o3d, o3dheat
+    >>> from o3dheat.geometry.sampling import subdivide
+    >>> r = subdivide(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10))
+    >>> r.kind, r.params, r.V.shape, r.F.shape
+    ('subdivide', {'iterations': 1, 'method': 'midpoint'}, (722, 3), (1440, 3))
+    >>> r.mesh.vertex.positions.shape, o3dheat.check_mesh(r).euler_characteristic
+    (SizeVector[722, 3], 2)
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    kind: str
+    params: dict = field(default_factory=dict)
+    vertex_map: np.ndarray | None = None
+
+    @property
+    def mesh(self):
+        """The sampling as a new ``o3d.t.geometry.TriangleMesh``."""
+        import open3d as o3d
+
+        m = o3d.t.geometry.TriangleMesh()
+        m.vertex.positions = o3d.core.Tensor(self.V)
+        m.triangle.indices = o3d.core.Tensor(self.F)
+        return m
+
+    @property
+    def arrays(self):
+        """The sampling as the pair ``(V, F)``: (r, 3) float64 positions, (m, 3) int64 faces."""
+        return self.V, self.F
+
+    def __repr__(self):
+        return f"Resampled({self.kind}, {self.params}, vertices={len(self.V)}, faces={len(self.F)})"
+
+
+#: the fewest faces a resampling may leave (a tetrahedron's)
+MIN_FACES = 4
+
+
+def _check_result(V, F, kind, params):
+    if len(F) < MIN_FACES or len(V) < 4:
+        raise MeshError(f"{kind} with {params} left {len(F)} faces: choose a milder setting")
+
+
+def _clean(V, F, vertex_map=None):
+    """A 2-manifold: degenerate and duplicate faces dropped, then the faces at non-manifold edges
+    and vertices (rare after a decimation or remeshing, fatal to the topology), unreferenced
+    vertices removed; ``vertex_map`` (source -> V) is carried along. (Dropping, not splitting as
+    :func:`o3dheat.repair` does, keeps the vertex map one-to-one.)"""
+    F = np.asarray(F, dtype=np.int64)
+    F = F[~degenerate(F)]
+    _, first = unique_rows(np.sort(F, axis=1), return_index=True)
+    F = F[np.sort(first)]
+    n0 = len(F)
+    for _ in range(10):  # dropping faces can leave new non-manifold vertices: a few rounds
+        drop = non_manifold_edge_faces(F, len(V)) | non_manifold_vertex_mask(F, len(V))[F].any(axis=1)
+        if not drop.any():
+            break
+        F = F[~drop]
+    if len(F) < n0:
+        log.info("%d faces removed to keep a 2-manifold", n0 - len(F))
+    used = np.zeros(len(V), bool)
+    used[F.reshape(-1)] = True
+    remap = np.full(len(V), -1, np.int64)
+    remap[used] = np.arange(int(used.sum()))
+    if vertex_map is not None:
+        vertex_map = np.where(vertex_map >= 0, remap[np.maximum(vertex_map, 0)], -1)
+    return V[used], remap[F], vertex_map
+
+
+def decimate(mesh, reduction=0.7, target_faces=None):
+    """Quadric decimation (fast-simplification): fewer vertices where the surface is flat.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+        The surface to resample (not modified).
+    reduction : float in [0, 1)
+        Fraction of the faces to remove; at least :data:`MIN_FACES` faces must remain.
+    target_faces : int, optional
+        Instead of ``reduction``: the number of faces to keep (>= :data:`MIN_FACES`; no-op when
+        the mesh has fewer).
+
+    Returns
+    -------
+    Resampled
+        With ``vertex_map``: source vertex -> the decimated vertex it collapsed into.
+
+    Raises
+    ------
+    MeshError
+        A reduction outside [0, 1) or one that would leave fewer than :data:`MIN_FACES` faces (a
+        closed surface needs 4), a ``target_faces`` that is not an integer >= 4.
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat.geometry.sampling import decimate
+    >>> r = decimate(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40), reduction=0.5)
+    >>> len(r.F), len(r.vertex_map)               # half of the 6240 faces; one entry per source vertex
+    (3120, 3122)
+    """
+    import fast_simplification
+
+    V, F = as_arrays(mesh)
+    if target_faces is not None:
+        target_faces = checks.count(target_faces, "target_faces", minimum=MIN_FACES, maximum=2**62)
+        if target_faces >= len(F):
+            return Resampled(V, F, "decimate", {"target_faces": target_faces}, np.arange(len(V)))
+        reduction = 1.0 - target_faces / len(F)
+    if isinstance(reduction, bool) or not isinstance(reduction, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= reduction < 1.0:
+        raise MeshError(f"reduction must be a number in [0, 1), got {reduction!r}")
+    params = {"reduction": float(reduction)}
+    left = int(round(len(F) * (1.0 - reduction)))
+    if left < MIN_FACES:
+        raise MeshError(f"decimate: reduction={reduction:g} of {len(F)} faces would leave {left}, fewer than "
+                        f"{MIN_FACES}: use a reduction of at most {1 - MIN_FACES / len(F):.4g}, or target_faces")
+    if reduction == 0:
+        return Resampled(V, F, "decimate", params, np.arange(len(V)))
+    _, _, collapses = fast_simplification.simplify(V, F.astype(np.int32), target_reduction=float(reduction),
+                                                   return_collapses=True)
+    V2, F2, vmap = fast_simplification.replay_simplification(V, F.astype(np.int32), collapses)
+    _check_result(V2, F2, "decimate", params)  # (fast-simplification may remove more than asked)
+    V2, F2, vmap = _clean(np.asarray(V2, np.float64), np.asarray(F2, np.int64), np.asarray(vmap, np.int64))
+    _check_result(V2, F2, "decimate", params)
+    return Resampled(V2, F2, "decimate", params, vmap)
+
+
+def warm_up():
+    """Run one pymeshlab filter in the calling thread.
+
+    pymeshlab loads its plugins (and their libraries) at the first filter call. When that first
+    call happens in a secondary thread (a Dask worker's task thread), the process was seen to
+    abort at exit with a corrupted heap ("malloc_consolidate(): unaligned fastbin chunk").
+    Calling this once from the main thread first avoids it; the studies do so on every worker.
+
+    Examples
+    --------
+    >>> from o3dheat.geometry.sampling import warm_up
+    >>> warm_up()
+    """
+    import open3d as o3d
+
+    m = o3d.geometry.TriangleMesh.create_icosahedron(1.0)
+    ms, pymeshlab = _meshset(np.asarray(m.vertices), np.asarray(m.triangles))
+    _isotropic(ms, pymeshlab, 0.5, 1, False)
+
+
+def _isotropic(ms, pymeshlab, length, iterations, selected):
+    """``pymeshlab``'s isotropic explicit remeshing with every parameter given (its defaults, but the
+    target length, iterations and selection): pymeshlab was seen to reuse a previous call's
+    ``selectedonly=True``, so nothing is left to what an earlier call set."""
+    ms.meshing_isotropic_explicit_remeshing(
+        iterations=iterations, adaptive=False, selectedonly=selected, targetlen=pymeshlab.PureValue(length),
+        featuredeg=30.0, checksurfdist=True, maxsurfdist=pymeshlab.PercentageValue(1.0), splitflag=True,
+        collapseflag=True, swapflag=True, smoothflag=True, reprojectflag=True)
+
+
+def _meshset(V, F):
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(np.asarray(V, np.float64), np.asarray(F, np.int32)))
+    return ms, pymeshlab
+
+
+def _from_meshset(ms, kind, params):
+    m = ms.current_mesh()
+    # copies: pymeshlab's matrices may point into memory that dies with the MeshSet
+    V, F = np.array(m.vertex_matrix(), np.float64, copy=True), np.array(m.face_matrix(), np.int64, copy=True)
+    _check_result(V, F, kind, params)
+    V, F, _ = _clean(V, F)
+    _check_result(V, F, kind, params)
+    return Resampled(V, F, kind, params)
+
+
+#: the default bound on the faces a remeshing may make (:func:`remesh`, :func:`anisotropic`):
+#: pymeshlab made about 5,000 faces a second here (a unit sphere at edge length 0.02: 72k faces in
+#: 13 s, 2026-12), so a million faces is minutes of work that cannot be interrupted
+REMESH_MAX_FACES = 1_000_000
+
+
+def _faces_at(area, length):
+    """The faces of an ``area`` covered by equilateral triangles of side ``length``."""
+    return area / (np.sqrt(3) / 4 * length**2)
+
+
+def _bound_faces(faces, max_faces, what):
+    """Refuse, before pymeshlab starts, a remeshing estimated to make more than ``max_faces``
+    faces: pymeshlab gives no estimate and cannot be interrupted."""
+    max_faces = checks.count(max_faces, "max_faces", maximum=2**62)
+    if faces > max_faces:
+        raise MeshError(f"{what} would make about {faces:.3g} faces (the area over an equilateral triangle's "
+                        f"at the target edge length), more than max_faces={max_faces}: use a longer edge length, "
+                        "or raise max_faces")
+
+
+def _area(V, F):
+    return 0.5 * float(np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1).sum())
+
+
+def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None, max_faces=REMESH_MAX_FACES):
+    """Isotropic explicit remeshing (pymeshlab): a uniform sampling of the same surface.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+        The surface to resample (not modified).
+    target_edge_length : float, optional
+        In the units of the mesh (> 0, smaller than the bounding box).
+    iterations : int
+        Iterations of pymeshlab's isotropic explicit remeshing (1 to 1000).
+    edge_factor : float, optional
+        Instead of ``target_edge_length``: a multiple of the mesh's mean edge length (scale-free,
+        for studies over meshes of different sizes). With neither given: ``edge_factor=1`` (a
+        uniform sampling at the mean edge length).
+    max_faces : int
+        Refuse, before any work, a remeshing estimated to make more faces (the surface's area over
+        an equilateral triangle's at the target length); default :data:`REMESH_MAX_FACES`.
+
+    Returns
+    -------
+    Resampled
+
+    Raises
+    ------
+    MeshError
+        Bad parameters, or an estimate above ``max_faces`` (e.g. ``target_edge_length=1e-3`` on a
+        unit sphere: about 29 million faces).
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d
+    >>> from o3dheat.geometry.sampling import remesh
+    >>> r = remesh(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20), 0.1)
+    >>> e = np.linalg.norm(r.V[r.F[:, 0]] - r.V[r.F[:, 1]], axis=1)
+    >>> bool(0.07 < np.median(e) < 0.13)
+    True
+    """
+    iterations = checks.count(iterations, "iterations", maximum=1000)
+    V, F = as_arrays(mesh)
+    if target_edge_length is not None and edge_factor is not None:
+        raise MeshError("give target_edge_length or edge_factor, not both")
+    if target_edge_length is None and edge_factor is None:
+        edge_factor = 1.0
+    if edge_factor is not None:
+        if not (np.isfinite(edge_factor) and edge_factor > 0):
+            raise MeshError(f"edge_factor must be > 0, got {edge_factor}")
+        target_edge_length = edge_factor * float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
+    L = float(target_edge_length)
+    diag = float(np.linalg.norm(np.ptp(V, axis=0)))
+    if not (np.isfinite(L) and 0 < L < diag):
+        raise MeshError(f"target_edge_length must lie in (0, {diag:.4g}) (the bounding-box diagonal), got {L}")
+    _bound_faces(_faces_at(_area(V, F), L), max_faces, f"remesh with target_edge_length={L:.4g}")
+    ms, pymeshlab = _meshset(V, F)
+    _isotropic(ms, pymeshlab, L, int(iterations), False)
+    params = {"target_edge_length": L, "iterations": int(iterations)}
+    if edge_factor is not None:
+        params["edge_factor"] = float(edge_factor)
+    return _from_meshset(ms, "remesh", params)
+
+
+def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6, max_faces=REMESH_MAX_FACES):
+    """A strongly non-uniform sampling: the half ``x_axis < median`` remeshed coarse, the other fine.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+        The surface to resample (not modified).
+    coarse, fine : float
+        Target edge lengths of the two halves, as multiples of the mesh's mean edge length.
+    axis : int
+        0, 1 or 2: the axis that splits the surface.
+    iterations : int
+        Remeshing iterations per half.
+    max_faces : int
+        Refuse, before any work, a remeshing estimated to make more faces (as :func:`remesh`).
+
+    Returns
+    -------
+    Resampled
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d
+    >>> from o3dheat.geometry.sampling import anisotropic
+    >>> r = anisotropic(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 30))
+    >>> left = r.V[:, 0] < 0
+    >>> bool(np.sum(~left) > 10 * np.sum(left))       # the fine half holds most vertices
+    True
+    """
+    iterations = checks.count(iterations, "iterations", maximum=1000)
+    V, F = as_arrays(mesh)
+    if axis not in (0, 1, 2):
+        raise MeshError(f"axis must be 0, 1 or 2, got {axis}")
+    try:
+        positive = bool(np.isfinite(coarse) and np.isfinite(fine) and coarse > 0 and fine > 0)
+    except TypeError:
+        positive = False
+    if isinstance(coarse, bool) or isinstance(fine, bool) or not positive:
+        raise MeshError(f"coarse and fine must be positive numbers, got {coarse!r} and {fine!r}")
+    mean_edge = float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
+    cut = float(np.median(V[:, axis]))
+    below = V[F, axis].mean(axis=1) < cut
+    faces = sum(_faces_at(_area(V, F[half]), length * mean_edge) for half, length in ((below, coarse), (~below, fine)))
+    _bound_faces(faces, max_faces, f"anisotropic with coarse={coarse:g}, fine={fine:g}")
+    c = "xyz"[axis]
+    ms, pymeshlab = _meshset(V, F)
+    for cond, length in ((f"({c}0+{c}1+{c}2)/3 < {cut!r}", coarse), (f"({c}0+{c}1+{c}2)/3 >= {cut!r}", fine)):
+        ms.set_selection_none()
+        ms.compute_selection_by_condition_per_face(condselect=cond)
+        _isotropic(ms, pymeshlab, length * mean_edge, int(iterations), True)
+    ms.set_selection_none()
+    return _from_meshset(ms, "anisotropic", {"coarse": coarse, "fine": fine, "axis": axis,
+                                             "iterations": int(iterations)})
+
+
+_JITTER_MIN_AREA = 0.1  # least (new area projected on the original plane) / (original area) of a jittered face
+_JITTER_HALVINGS = 8  # rounds that halve the moves of the vertices of failing faces, before zeroing them
+
+
+def _face_cross(V, F):
+    """Cross products ``(b - a) x (c - a)`` of the faces: twice the area times the unit normal."""
+    return np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+
+
+def _failing_faces(V, F, n0, nn0, D):
+    """Faces whose triangle, moved by ``D``, keeps less than ``_JITTER_MIN_AREA`` of its original area
+    when projected on its original plane (``n_new . n_old < min * |n_old|^2``); unmoved faces pass."""
+    n1 = _face_cross(V + D, F)
+    return np.einsum("ij,ij->i", n1, n0) < _JITTER_MIN_AREA * nn0
+
+
+def _limit_moves(V, F, d, s):
+    """Shrink the per-vertex scales ``s`` of the moves ``d`` until no face fails (see :func:`jitter`).
+
+    Faces of zero area (relative to the mean edge length) are never checked: their vertices must
+    come with ``s = 0``. Returns the final scales (a new array)."""
+    s = s.copy()
+    n0 = _face_cross(V, F)
+    nn0 = np.einsum("ij,ij->i", n0, n0)
+    for _ in range(_JITTER_HALVINGS):
+        bad = _failing_faces(V, F, n0, nn0, s[:, None] * d)
+        if not bad.any():
+            return s
+        s[F[bad].reshape(-1)] *= 0.5
+    # last resort: keep the vertices of the failing faces in place. A face whose three vertices stay
+    # is the original one (V + 0 d == V exactly) and passes, so every round zeroes at least one
+    # moving vertex: at most n rounds, and the result has no failing face by construction.
+    while True:
+        bad = _failing_faces(V, F, n0, nn0, s[:, None] * d)
+        if not bad.any():
+            return s
+        s[F[bad].reshape(-1)] = 0.0
+
+
+def jitter(mesh, amount=0.3, seed=0):
+    """Move every vertex at random in its tangent plane, never folding a face.
+
+    Same connectivity, new sample positions. Each vertex gets a Gaussian proposal (standard
+    deviation ``amount`` x the mean edge length ``h`` per coordinate, projected on the plane
+    normal to its area-weighted vertex normal), which is then shrunk where it would spoil a face:
+    while some face, once moved, keeps less than 10 % of its original area when projected on its
+    original plane, the moves of that face's vertices are halved (8 rounds at most), then set to 0.
+
+    Guarantee, for any ``amount`` and ``seed``: every face of positive area keeps
+    ``n_new . n_old >= 0.1 |n_old|^2`` (``n`` the cross product of two edges, twice the area times
+    the unit normal), so no face flips (its normal turns by less than 90 degrees) and none gets
+    near-degenerate (its new area is at least 10 % of the original). Faces of zero area in the
+    input (below ``1e-12 h^2``) keep their vertices in place, and so do unreferenced vertices. It
+    does not rule out self-intersections between faces that do not share a vertex.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+        The surface to resample (not modified).
+    amount : float
+        Standard deviation of the proposed displacement, per tangent direction, as a fraction of
+        the mean edge length (>= 0). On a mesh without thin triangles the limiter seldom acts
+        below about 0.1; large amounts (> 1) are shrunk almost everywhere (the mean move then
+        stays a fraction of an edge length, see ``moved_mean``).
+    seed : int
+        Seed of the random proposals (numpy's ``default_rng``), >= 0.
+
+    Returns
+    -------
+    Resampled
+        ``vertex_map`` is the identity. ``params`` holds ``amount`` and ``seed`` and, as plain
+        floats and ints, ``moved_mean`` and ``moved_max`` (the mean and largest vertex
+        displacement in units of the mean edge length), ``limited`` (referenced vertices whose
+        move was shrunk, including those kept in place), ``frozen`` (referenced vertices kept in
+        place) and ``degenerate`` (faces of zero area, skipped).
+
+    Raises
+    ------
+    MeshError
+        ``amount`` negative, not finite, or so large that the displacements overflow.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d
+    >>> from o3dheat.geometry.sampling import jitter
+    >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 30)
+    >>> a, b = jitter(m, 0.2, seed=1), jitter(m, 0.2, seed=1)
+    >>> bool(np.array_equal(a.V, b.V)), bool(abs(np.linalg.norm(a.V, axis=1) - 1).max() < 0.01)
+    (True, True)
+    >>> r = jitter(m, 3.0)                          # a large amount: shrunk moves, still no fold
+    >>> F, V0 = r.F, m.vertex.positions.numpy()
+    >>> n0 = np.cross(V0[F[:, 1]] - V0[F[:, 0]], V0[F[:, 2]] - V0[F[:, 0]])
+    >>> n1 = np.cross(r.V[F[:, 1]] - r.V[F[:, 0]], r.V[F[:, 2]] - r.V[F[:, 0]])
+    >>> bool((np.einsum("ij,ij->i", n1, n0) >= 0.1 * np.einsum("ij,ij->i", n0, n0)).all())
+    True
+    >>> sorted(r.params)
+    ['amount', 'degenerate', 'frozen', 'limited', 'moved_max', 'moved_mean', 'seed']
+    """
+    V, F = as_arrays(mesh)
+    if isinstance(amount, bool) or not isinstance(amount, (int, float, np.integer, np.floating)) \
+            or not (np.isfinite(amount) and amount >= 0):
+        raise MeshError(f"amount must be a number >= 0, got {amount!r}")
+    seed = checks.count(seed, "seed", minimum=0, maximum=2**63 - 1)
+    N = vertex_normals(V, F)
+    h = float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow: reported below
+        d = np.random.default_rng(seed).standard_normal(V.shape) * amount * h
+        d -= np.einsum("ij,ij->i", d, N)[:, None] * N  # tangential
+    if not np.all(np.isfinite(d)):
+        raise MeshError(f"amount {amount} is too large: the displacements overflow")
+    used = np.zeros(len(V), bool)
+    used[F.reshape(-1)] = True
+    degenerate = np.linalg.norm(_face_cross(V, F), axis=1) <= 1e-12 * h * h
+    s = used.astype(np.float64)
+    s[F[degenerate].reshape(-1)] = 0.0
+    s = _limit_moves(V, F[~degenerate], d, s)
+    W = V + s[:, None] * d
+    moved = np.linalg.norm(W - V, axis=1) / (h if h > 0 else 1.0)
+    params = {"amount": float(amount), "seed": int(seed),
+              "moved_mean": float(moved.mean()), "moved_max": float(moved.max()),
+              "limited": int(np.sum(used & (s < 1.0))) if amount > 0 else 0,
+              "frozen": int(np.sum(used & (s == 0.0))) if amount > 0 else 0,
+              "degenerate": int(degenerate.sum())}
+    return Resampled(W, F.copy(), "jitter", params, np.arange(len(V)))
+
+
+def subdivide(mesh, iterations=1, method="midpoint"):
+    """Subdivide every triangle into four, ``iterations`` times.
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+        The surface to resample (not modified).
+    iterations : int
+        Number of subdivisions, 0 to 6 (each multiplies the faces by 4; 0 returns the mesh as it is).
+    method : {"midpoint", "loop"}
+        "midpoint" keeps the surface (new vertices on the old edges); "loop" smooths it.
+
+    Returns
+    -------
+    Resampled
+        The source vertices keep their indices (``vertex_map`` is the identity on them).
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat.geometry.sampling import subdivide
+    >>> len(subdivide(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10), 2).F)
+    5760
+    """
+    import open3d as o3d
+
+    V, F = as_arrays(mesh)
+    if method not in ("midpoint", "loop"):
+        raise MeshError(f"method must be 'midpoint' or 'loop', got {method!r}")
+    if not (isinstance(iterations, (int, np.integer)) and 0 <= iterations <= 6):
+        raise MeshError(f"iterations must be an integer in [0, 6], got {iterations!r}")
+    m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F.astype(np.int32)))
+    if iterations:
+        m = m.subdivide_midpoint(int(iterations)) if method == "midpoint" else m.subdivide_loop(int(iterations))
+    V2, F2 = np.asarray(m.vertices, np.float64), np.asarray(m.triangles, np.int64)
+    return Resampled(V2, F2, "subdivide", {"iterations": int(iterations), "method": method}, np.arange(len(V)))
+
+
+#: resampling kind -> its function: the names :func:`resample` and the studies accept
+KINDS = {"decimate": decimate, "remesh": remesh, "anisotropic": anisotropic, "jitter": jitter,
+         "subdivide": subdivide}
+
+
+def resample(mesh, kind, **params):
+    """One of the resamplings by name: ``resample(mesh, "remesh", target_edge_length=0.01)``.
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat.geometry.sampling import resample
+    >>> resample(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10), "jitter", amount=0.1).kind
+    'jitter'
+    """
+    if kind not in KINDS:
+        raise MeshError(f"unknown resampling {kind!r}: use one of {', '.join(KINDS)}")
+    try:
+        return KINDS[kind](mesh, **params)
+    except TypeError as e:
+        raise MeshError(f"resampling {kind!r}: {e}") from e
+
+
+def point_arrays(cloud):
+    """Positions (n, 3) float64 and normals (n, 3) or None of an Open3D point cloud (tensor or legacy).
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d
+    >>> from o3dheat.geometry.sampling import point_arrays
+    >>> pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.eye(3, dtype=np.float32)))
+    >>> P, N = point_arrays(pc)
+    >>> P.dtype, P.shape, N is None
+    (dtype('float64'), (3, 3), True)
+    """
+    import open3d as o3d
+
+    if isinstance(cloud, o3d.t.geometry.PointCloud):
+        if "positions" not in cloud.point or len(cloud.point.positions) == 0:
+            raise MeshError("the point cloud is empty")
+        P = cloud.point.positions.numpy().astype(np.float64)
+        N = cloud.point.normals.numpy().astype(np.float64) if "normals" in cloud.point else None
+    elif isinstance(cloud, o3d.geometry.PointCloud):
+        if not cloud.has_points():
+            raise MeshError("the point cloud is empty")
+        P = np.asarray(cloud.points, dtype=np.float64)
+        N = np.asarray(cloud.normals, dtype=np.float64) if cloud.has_normals() else None
+    else:
+        raise MeshError(f"expected an Open3D point cloud, got {type(cloud).__name__}")
+    if not np.all(np.isfinite(P)):
+        raise MeshError("the point cloud has NaN or infinite coordinates")
+    return P, N
+
+
+def reconstruct(cloud, method="poisson", depth=8, neighbours=30, trim=0.0):
+    """A triangle mesh through a point cloud.
+
+    Parameters
+    ----------
+    cloud : o3d.t.geometry.PointCloud or o3d.geometry.PointCloud
+        Normals are estimated (``neighbours`` nearest points) and oriented consistently when
+        missing.
+    method : {"poisson", "ball_pivoting"}
+        Screened Poisson (watertight, new vertices) or ball pivoting (the points themselves as
+        vertices, radii from the mean spacing).
+    depth : int
+        Octree depth of the Poisson reconstruction.
+    neighbours : int
+        Neighbours for the normal estimation and orientation.
+    trim : float
+        Poisson only: remove this fraction of the vertices with the lowest sample density (the
+        surface Poisson invents far from the points, for open scans); 0 keeps a closed surface.
+
+    Returns
+    -------
+    V : (r, 3) float64 ndarray
+    F : (m, 3) int64 ndarray
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d
+    >>> from o3dheat.geometry.sampling import reconstruct
+    >>> P = np.random.default_rng(0).standard_normal((3000, 3)); P /= np.linalg.norm(P, axis=1)[:, None]
+    >>> V, F = reconstruct(o3d.t.geometry.PointCloud(o3d.core.Tensor(P)))
+    >>> bool(abs(np.linalg.norm(V, axis=1).mean() - 1) < 0.02)
+    True
+    """
+    import open3d as o3d
+
+    if method not in ("poisson", "ball_pivoting"):
+        raise MeshError(f"unknown reconstruction {method!r}: use 'poisson' or 'ball_pivoting'")
+    P, N = point_arrays(cloud)
+    check_points(P, planar=False, min_points=10, what="the point cloud to reconstruct")
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(P))
+    if N is None or not np.all(np.isfinite(N)):
+        pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(neighbours))
+        pcd.orient_normals_consistent_tangent_plane(neighbours)
+        # orient outwards on average (a closed surface around its centroid)
+        Nn = np.asarray(pcd.normals)
+        if np.sum(np.einsum("ij,ij->i", Nn, P - P.mean(0))) < 0:
+            pcd.normals = o3d.utility.Vector3dVector(-Nn)
+    else:
+        pcd.normals = o3d.utility.Vector3dVector(N)
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        if method == "poisson":
+            mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=depth)
+            if trim > 0:
+                dens = np.asarray(dens)
+                mesh.remove_vertices_by_mask(dens < np.quantile(dens, trim))
+        else:
+            spacing = float(np.mean(pcd.compute_nearest_neighbor_distance()))
+            radii = o3d.utility.DoubleVector([1.5 * spacing, 3 * spacing, 6 * spacing])
+            mesh = o3d.geometry.TriangleMesh.create_from_point_cloud_ball_pivoting(pcd, radii)
+    mesh.remove_unreferenced_vertices()
+    if len(mesh.triangles) == 0:
+        raise MeshError(f"the {method} reconstruction produced no triangles")
+    # reconstructions often have non-manifold edges or vertices: split them, so that topology
+    # (critical points, persistence) works on the surface (o3dheat.repair)
+    return as_arrays(repair(mesh).mesh)
+
+
+def _surface_of(source):
+    if isinstance(source, Resampled):
+        return source.V, source.F
+    return as_arrays(source)
+
+
+def transfer(values, source, target):
+    """Evaluate the PL function given at the vertices of ``source`` at the vertices of ``target``.
+
+    Each target point is projected on the closest point of the source surface (Open3D's
+    RaycastingScene) and gets the barycentric interpolation of that triangle's vertex values:
+    exact for functions linear on the source triangles (coordinates, for example), and the
+    identity when both samplings are the same mesh.
+
+    Parameters
+    ----------
+    values : (r,) or (r, c) array_like
+        One row per source vertex.
+    source : Open3D mesh, (V, F) or Resampled
+        The surface on whose vertices ``values`` are given.
+    target : Open3D mesh, (V, F), Resampled, or (p, 3) array of points
+        Where the function is evaluated: the vertices of a mesh, or points (projected on the closest
+        point of the source).
+
+    Returns
+    -------
+    (p,) or (p, c) float64 ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from o3dheat.geometry.sampling import transfer
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]]); F = np.array([[0, 1, 2]])
+    >>> transfer(V[:, 0], (V, F), np.array([[0.25, 0.25, 1.0]])).round(6).tolist()
+    [0.25]
+    """
+    import open3d as o3d
+
+    V, F = _surface_of(source)
+    if isinstance(target, np.ndarray) and target.ndim == 2 and target.shape[1] == 3:
+        pts = np.asarray(target, dtype=np.float64)
+    else:
+        pts = _surface_of(target)[0]
+    vals = checks.field(values, len(V), "values (one row per source vertex)")
+    # Open3D's closest-point scene is float32: centre and scale both point sets on the source's
+    # bounding box first (georeferenced scans sit 1e6 units from the origin, where float32 steps
+    # are 0.5 units); the barycentric coordinates are then computed in float64
+    centre = (V.min(axis=0) + V.max(axis=0)) / 2
+    size = float(np.max(np.ptp(V, axis=0))) or 1.0
+    V, pts = (V - centre) / size, (np.asarray(pts, dtype=np.float64) - centre) / size
+    scene = o3d.t.geometry.RaycastingScene()
+    tm = o3d.t.geometry.TriangleMesh()
+    tm.vertex.positions = o3d.core.Tensor(V.astype(np.float32))
+    tm.triangle.indices = o3d.core.Tensor(np.asarray(F, dtype=np.uint32))
+    scene.add_triangles(tm)
+    ans = scene.compute_closest_points(o3d.core.Tensor(pts.astype(np.float32)))
+    tri = ans["primitive_ids"].numpy().astype(np.int64)
+    # barycentric coordinates in float64 at the float32 closest point, for exactness
+    corner = np.asarray(F, dtype=np.int64)[tri]
+    w = _barycentric(pts, V[corner[:, 0]], V[corner[:, 1]], V[corner[:, 2]])
+    if vals.ndim == 1:
+        return np.einsum("pk,pk->p", w, vals[corner])
+    return np.einsum("pk,pkc->pc", w, vals[corner])
+
+
+def _barycentric(p, a, b, c):
+    """Barycentric coordinates of the closest point of triangle abc to p (clamped to the triangle)."""
+    ab, ac = b - a, c - a
+    n = np.cross(ab, ac)
+    nn = np.einsum("ij,ij->i", n, n)
+    q = p - (np.einsum("ij,ij->i", p - a, n) / np.where(nn > 0, nn, 1.0))[:, None] * n  # onto the plane
+    aq = q - a
+    d00, d01, d11 = np.einsum("ij,ij->i", ab, ab), np.einsum("ij,ij->i", ab, ac), np.einsum("ij,ij->i", ac, ac)
+    d20, d21 = np.einsum("ij,ij->i", aq, ab), np.einsum("ij,ij->i", aq, ac)
+    den = d00 * d11 - d01 * d01
+    den = np.where(den > 0, den, 1.0)
+    v = (d11 * d20 - d01 * d21) / den
+    w = (d00 * d21 - d01 * d20) / den
+    u = 1.0 - v - w
+    W = np.clip(np.stack([u, v, w], 1), 0.0, None)
+    return W / W.sum(axis=1, keepdims=True)
+
+
+def nearest(values, source, points):
+    """Values at the nearest of the ``source`` positions (a k-d tree), for each of ``points``.
+
+    Examples
+    --------
+    >>> from o3dheat.geometry.sampling import nearest
+    >>> nearest([1.0, 2.0], [[0, 0, 0], [1, 0, 0]], [[0.9, 0, 0]]).tolist()
+    [2.0]
+    """
+    from scipy.spatial import cKDTree
+
+    vals = np.asarray(checks.values(values))
+    _, idx = cKDTree(np.asarray(source, dtype=np.float64)).query(np.asarray(points, dtype=np.float64))
+    return vals[idx]

@@ -1,0 +1,42 @@
+"""Dask's log records, one line each: the filter and the context that installs it, shared by the
+cluster (:mod:`o3dheat.pipelines.cluster`, in this process) and the worker plugins (:mod:`o3dheat.pipelines.workers`,
+in the workers), without importing Dask."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+
+
+class DaskLogs(logging.Filter):
+    """Records of Dask and its web stack below ``level`` dropped, the others on one line (no
+    traceback): a worker's death is a task's result (:func:`task_error`), not pages of stack."""
+
+    def __init__(self, level):
+        super().__init__()
+        self.level = level
+
+    def filter(self, record):
+        if not record.name.startswith(("distributed", "dask", "tornado", "asyncio")):
+            return True
+        if record.levelno < self.level:
+            return False
+        text = record.getMessage().strip().splitlines()
+        record.msg, record.args = (text[0] if text else ""), None
+        record.exc_info = record.exc_text = record.stack_info = None
+        return True
+
+
+@contextlib.contextmanager
+def dask_logs(level):
+    """The handlers that Dask's records reach (the root's and Dask's own) filtered by
+    :class:`DaskLogs` for the duration."""
+    handlers = {h for name in ("", "distributed", "tornado", "asyncio") for h in logging.getLogger(name).handlers}
+    flt = DaskLogs(level)
+    for h in handlers:
+        h.addFilter(flt)
+    try:
+        yield
+    finally:
+        for h in handlers:
+            h.removeFilter(flt)

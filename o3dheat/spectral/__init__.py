@@ -1,0 +1,13 @@
+"""Spectral operators: linear FEM, Cholesky factors, eigenpairs, heat kernels, exact heat flow."""
+
+from .diffusion import diffuse
+from .fem import mass_matrix, stiffness_matrix
+from .heatflow import HeatFlow, heat_flow
+from .kernel import VARIANTS, HeatKernel, heat_kernel
+from .spectrum import Spectrum, clear_cache, eigensolve, set_cache, shared_eigensolve
+
+# isort: split
+# the modules, as attributes of the package
+from . import diffusion, fem, heatflow, kernel, krylov, lanczos, linalg, spectrum  # noqa: E402
+
+__all__ = ["mass_matrix", "stiffness_matrix", "Spectrum", "clear_cache", "eigensolve", "set_cache", "shared_eigensolve", "HeatKernel", "VARIANTS", "heat_kernel", "diffuse", "HeatFlow", "heat_flow", "fem", "linalg", "lanczos", "spectrum", "kernel", "diffusion", "krylov", "heatflow"]

@@ -1,0 +1,224 @@
+"""Spectra on disk: the signed entries of the spectrum cache, and the self-contained ``.npz`` files
+of :meth:`o3dheat.Spectrum.save` (entry points: :func:`cache_load`, :func:`cache_save`,
+:func:`prune`; written with :func:`o3dheat.io.atomic_write`).
+
+Only o3dheat's own writes are read back from a cache folder: every entry carries a keyed BLAKE2b
+signature of its name and arrays, made with a secret kept in the folder (``.o3dheat-key``, 32
+random bytes, readable by its owner only, created once). A file placed in the folder by another
+tool or by hand, edited, renamed to another key or copied from another folder has no matching
+signature and is recomputed, never trusted. This guards against accidents and foreign files, not
+against someone who can read the key (they can write the folder anyway). Pruning deletes only
+o3dheat's own names (``spectrum-<32 hex digits>.npz`` and its writers' temporary files).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import logging
+import os
+import re
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from o3dheat.errors import MeshError
+from o3dheat.io import atomic_write
+
+log = logging.getLogger("o3dheat")
+
+KEY_FILE = ".o3dheat-key"
+ENTRY = re.compile(r"spectrum-[0-9a-f]{32}\.npz")
+PARTIAL = re.compile(r"spectrum-[A-Za-z0-9_]+\.npz\.tmp")  # older versions' temporary files
+
+
+def entry_path(folder, key):
+    """The cache entry of ``key`` (a 32-digit hex string) in ``folder``."""
+    return Path(folder) / f"spectrum-{key}.npz"
+
+
+def folder_key(folder, create):
+    """The folder's secret (bytes), made on first use when ``create``; None when it has none or
+    cannot be read. Made by a hard link of a complete file: a concurrent reader never sees a
+    partial key."""
+    path = Path(folder) / KEY_FILE
+    for _ in range(2):
+        try:
+            secret = path.read_bytes()
+            if len(secret) == 32:
+                return secret
+            log.warning("ignoring the malformed cache key %s: the folder's entries are not trusted", path)
+            return None
+        except FileNotFoundError:
+            if not create:
+                return None
+        except OSError:
+            return None
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".o3dheat-key-")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(os.urandom(32))
+            os.chmod(tmp, 0o600)
+            os.link(tmp, path)  # fails if another writer made it first: then its key is read
+        except FileExistsError:
+            pass
+        except OSError:
+            return None
+        finally:
+            os.unlink(tmp)
+    return None
+
+
+def signature(secret, key, arrays):
+    """Keyed BLAKE2b of the entry's name and its arrays (names, dtypes, shapes and bytes)."""
+    h = hashlib.blake2b(key=secret, digest_size=32)
+    h.update(key.encode())
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"|{name}|{a.dtype.str}|{a.shape}|".encode())
+        if a.size:
+            h.update(memoryview(a).cast("B"))
+    return np.frombuffer(h.digest(), dtype=np.uint8)
+
+
+def cache_load(folder, key):
+    """The arrays of the entry ``key`` if it is o3dheat's own (its signature matches); None when
+    it is absent, unreadable or foreign (with a warning naming it)."""
+    path = entry_path(folder, key)
+    if not path.exists():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {name: z[name] for name in z.files}
+    except Exception as e:  # a corrupt cache file is ignored, never fatal
+        log.warning("ignoring unreadable cache file %s (%s)", path, e)
+        return None
+    stored = arrays.pop("signature", None)
+    secret = folder_key(folder, create=False)
+    if stored is None or secret is None or not hmac.compare_digest(
+            stored.tobytes(), signature(secret, key, arrays).tobytes()):
+        log.warning("the cached spectrum %s is not o3dheat's own write for this key (tampered or corrupt: "
+                    "its signature does not match): recomputing", path.name)
+        return None
+    try:
+        os.utime(path)  # used now, and ours: the last to be pruned
+    except OSError:
+        pass
+    return arrays
+
+
+def cache_save(folder, key, arrays, budget):
+    """Store ``arrays`` signed under ``key``, then prune the folder to ``budget`` bytes; a folder
+    that cannot be written gives a warning, never an error."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        secret = folder_key(folder, create=True)
+        if secret is None:
+            raise OSError(f"no readable key {KEY_FILE}")
+        signed = {**arrays, "signature": signature(secret, key, arrays)}
+        atomic_write(entry_path(folder, key), lambda fh: np.savez(fh, **signed))
+        prune(folder, budget, keep=entry_path(folder, key))
+    except (OSError, MeshError) as e:  # atomic_write names an unwritable folder with a MeshError
+        log.warning("could not write the spectrum cache in %s (%s)", folder, e)
+
+
+def _ours(path):
+    """Whether ``path`` is an o3dheat cache entry: its name, and the members o3dheat writes."""
+    if not ENTRY.fullmatch(path.name):
+        return False
+    try:
+        with zipfile.ZipFile(path) as z:
+            return "eigenvectors.npy" in z.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return True  # o3dheat's name, unreadable content: a broken write of ours
+
+
+def prune(folder, budget, keep=None, stale_after=3600.0):
+    """Delete temporary files left by interrupted writes (older than an hour: a live writer is
+    faster), then the least recently used entries until o3dheat's entries hold at most ``budget``
+    bytes (``keep``, the entry just written, stays even when it alone exceeds the budget). Files
+    with other names are never touched."""
+    folder = Path(folder)
+    now = time.time()
+    files = []
+    for f in folder.glob("spectrum-*"):
+        try:
+            st = f.stat()
+        except OSError:
+            continue
+        if PARTIAL.fullmatch(f.name):
+            if now - st.st_mtime > stale_after:
+                try:
+                    f.unlink()
+                except OSError:
+                    pass
+        elif _ours(f):
+            files.append((st.st_mtime, st.st_size, f))
+    total = sum(size for _, size, _ in files)
+    for _, size, f in sorted(files):  # oldest use first
+        if total <= budget:
+            break
+        if f == keep:
+            continue
+        try:
+            f.unlink()
+            total -= size
+        except OSError:
+            pass
+
+
+FORMAT = "o3dheat-spectrum-1"
+_SPARSE = ("stiffness", "mass")
+_DENSE = ("eigenvalues", "eigenvectors", "areas", "residuals")
+
+
+def spectrum_arrays(s):
+    """The members of a :meth:`o3dheat.Spectrum.save` file (plain arrays, no pickles)."""
+    out = {"format": np.array(FORMAT), "mass_kind": np.array(s.mass_kind), "backend": np.array(s.backend),
+           "sigma": np.array(float(s.sigma))}
+    out.update({name: np.asarray(getattr(s, name), dtype=np.float64) for name in _DENSE})
+    for name in _SPARSE:
+        A = getattr(s, name).tocsc()
+        out.update({f"{name}_data": A.data, f"{name}_indices": A.indices, f"{name}_indptr": A.indptr,
+                    f"{name}_shape": np.array(A.shape, dtype=np.int64)})
+    if s.faces is not None:
+        out["faces"] = np.asarray(s.faces, dtype=np.int64)
+    if s.inverse_mass_bound is not None:
+        out["inverse_mass_bound"] = np.asarray(s.inverse_mass_bound, dtype=np.float64)
+    return out
+
+
+def read_spectrum(path):
+    """The fields of a :class:`o3dheat.Spectrum` from a :meth:`~o3dheat.Spectrum.save` file,
+    unchecked (the caller checks them); a MeshError when the file is not one."""
+    import scipy.sparse as sp
+
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            a = {name: z[name] for name in z.files}
+    except FileNotFoundError:
+        raise MeshError(f"no such file: {path}") from None
+    except Exception as e:
+        raise MeshError(f"{path} is not a readable .npz file ({e})") from None
+    if "format" not in a or str(a["format"]) != FORMAT:
+        raise MeshError(f"{path} is not a spectrum saved by o3dheat (Spectrum.save / o3dheat spectrum -o): "
+                        f"it has {', '.join(sorted(a)) or 'no arrays'}")
+    try:
+        fields = {name: np.asarray(a[name], dtype=np.float64) for name in _DENSE}
+        for name in _SPARSE:
+            A = sp.csc_matrix((a[f"{name}_data"], a[f"{name}_indices"], a[f"{name}_indptr"]),
+                              shape=tuple(int(x) for x in a[f"{name}_shape"]))
+            A.check_format(full_check=True)  # indices in range: products with A read only its own memory
+            fields[name] = A
+        fields.update(mass_kind=str(a["mass_kind"]), backend=str(a["backend"]), sigma=float(a["sigma"]),
+                      faces=a.get("faces"), inverse_mass_bound=a.get("inverse_mass_bound"))
+    except (KeyError, ValueError, TypeError, IndexError) as e:
+        raise MeshError(f"{path}: a broken spectrum file ({type(e).__name__}: {e})") from None
+    if fields["eigenvectors"].ndim != 2 or fields["eigenvalues"].ndim != 1 or fields["eigenvalues"].size == 0:
+        raise MeshError(f"{path}: eigenvectors must be a matrix and eigenvalues a non-empty vector")
+    return fields
