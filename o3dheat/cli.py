@@ -111,6 +111,105 @@ def _sub(sub, name, help_text):
                           formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
+def _demo_arguments(p):
+    """The arguments of ``o3dheat demo``."""
+    p.add_argument("--out", help="output PLY, in a folder that exists (default: o3dheat-demo/bunny_heat.ply, "
+                                 "folder created, or bunny_heat-N.ply when that exists: an earlier result is "
+                                 "never replaced)")
+    p.add_argument("--overwrite", action="store_true", help="allow replacing an existing --out")
+    p.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
+    p.add_argument("--reduction", type=float, default=0.6, help="decimation fraction (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
+
+
+def _info_arguments(p):
+    """The arguments of ``o3dheat info``."""
+    p.add_argument("mesh", help="mesh file (PLY, OBJ, OFF, STL, ...)")
+
+
+def _repair_arguments(p):
+    """The arguments of ``o3dheat repair``."""
+    p.add_argument("input", help="mesh file (PLY, OBJ, OFF, STL, ...)")
+    p.add_argument("output", help="output .ply or .npz")
+    p.add_argument("--min-component-faces", type=int, default=0, metavar="N",
+                   help="remove components with fewer faces (default: keep all)")
+    p.add_argument("--no-split", action="store_true", help="keep non-manifold edges and vertices")
+    p.add_argument("--no-orient", action="store_true", help="keep the faces' orientation")
+    p.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
+    p.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
+
+
+def _filters_arguments(p):
+    """The arguments of ``o3dheat filters``."""
+    p.add_argument("name", nargs="?", help="a filter name")
+
+
+def _apply_arguments(p):
+    """The arguments of ``o3dheat apply``."""
+    p.add_argument("input", help="mesh or point cloud file (PLY, NPZ, OBJ, OFF, STL, PCD, ...)")
+    p.add_argument("output", help="output file (.ply or .npz)")
+    p.add_argument("-f", "--filter", action="append", default=[], metavar="NAME:key=value,...",
+                   help="a filter and its parameters (repeatable; run in order)")
+    p.add_argument("--chain", help="a TOML chain file (run before any -f)")
+    p.add_argument("--save-chain", metavar="TOML", help="also write the chain that was run")
+    p.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
+    p.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
+    p.add_argument("--cache", nargs="?", const=True, metavar="DIR",
+                   help="keep spectra on disk (default folder: $O3DHEAT_CACHE or the user cache folder, ~/.cache/o3dheat on Linux)")
+
+
+def _batch_arguments(p):
+    """The arguments of ``o3dheat batch``."""
+    p.add_argument("inputs", nargs="+", metavar="INPUT", help="files or quoted glob patterns ('scans/*.ply')")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (created): DIR/<input stem>.ply")
+    p.add_argument("-f", "--filter", action="append", default=[], metavar="NAME:key=value,...",
+                   help="a filter and its parameters (repeatable; run in order)")
+    p.add_argument("--chain", help="a TOML chain file (run before any -f)")
+    p.add_argument("--scheduler", help="'sequential', or a Dask scheduler address (default: a local cluster)")
+    p.add_argument("--format", choices=["ply", "npz"], default="ply", help="output format (default: %(default)s)")
+    p.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
+    p.add_argument("--overwrite", action="store_true",
+                   help="recompute every output, removing those of files that fail (default: skip the "
+                        "outputs that exist)")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="a progress bar (default: when stderr is a terminal)")
+
+
+def _spectrum_arguments(p):
+    """The arguments of ``o3dheat spectrum``."""
+    p.add_argument("input", help="mesh file")
+    p.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
+    p.add_argument("--mass", default="consistent", choices=list(fem.MASS_KINDS),
+                   help="the mass B of L x = λ B x (o3dheat.spectral.fem.MASS_KINDS; default: %(default)s): "
+                        + "; ".join(f"{name}: {text}" for name, text in fem.MASS_KINDS.items()))
+    p.add_argument("-o", "--out", required=True,
+                   help="output .npz, in a folder that exists: the whole spectrum (eigenpairs, operators, areas, "
+                        "faces, residuals), read back by o3dheat.Spectrum.load")
+    p.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
+
+
+def _study_arguments(p):
+    """The arguments of ``o3dheat study``."""
+    p.add_argument("config", help="study TOML file")
+    p.add_argument("--out", required=True, help="output folder, created (tasks/, study.csv, plots)")
+    p.add_argument("--scheduler", help="'sequential', or a Dask scheduler address (default: a local cluster)")
+
+
+def _figure_arguments(p):
+    """The arguments of ``o3dheat figure``."""
+    p.add_argument("input", help="mesh file")
+    p.add_argument("-o", "--out", required=True, help="output folder (created)")
+    p.add_argument("--attribute", help="vertex attribute to study (default: height + noise)")
+    p.add_argument("--column", type=int, metavar="N",
+                   help="the column of a multi-column --attribute (0-based, -1 the last); needed when it has "
+                        "several")
+    p.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
+    p.add_argument("--noise", type=float, default=0.1, help="noise added to the height, relative (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
+    p.add_argument("--up", default="z", choices=["x", "y", "z"], help="axis drawn vertical (default: %(default)s)")
+    p.add_argument("--overwrite", action="store_true", help="allow replacing the figures of an earlier run")
+
+
 def _parser():
     p = argparse.ArgumentParser(prog="o3dheat", description="Multi-scale heat-kernel analysis for Open3D meshes.",
                                 epilog="run 'o3dheat COMMAND --help' for examples of each command")
@@ -118,85 +217,14 @@ def _parser():
     p.add_argument("-v", "--verbose", action="store_true", help="log what happens")
     p.add_argument("--version", action="version", version=f"%(prog)s {o3dheat.__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    d = _sub(sub, "demo", "run the demo on the embedded bunny")
-    d.add_argument("--out", help="output PLY, in a folder that exists (default: o3dheat-demo/bunny_heat.ply, "
-                                 "folder created, or bunny_heat-N.ply when that exists: an earlier result is "
-                                 "never replaced)")
-    d.add_argument("--overwrite", action="store_true", help="allow replacing an existing --out")
-    d.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
-    d.add_argument("--reduction", type=float, default=0.6, help="decimation fraction (default: %(default)s)")
-    d.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
-    i = _sub(sub, "info", "check a mesh and report what matters to the FEM operators")
-    i.add_argument("mesh", help="mesh file (PLY, OBJ, OFF, STL, ...)")
-    r = _sub(sub, "repair", "repair a mesh: weld, drop bad faces, split non-manifold edges and vertices, orient")
-    r.add_argument("input", help="mesh file (PLY, OBJ, OFF, STL, ...)")
-    r.add_argument("output", help="output .ply or .npz")
-    r.add_argument("--min-component-faces", type=int, default=0, metavar="N",
-                   help="remove components with fewer faces (default: keep all)")
-    r.add_argument("--no-split", action="store_true", help="keep non-manifold edges and vertices")
-    r.add_argument("--no-orient", action="store_true", help="keep the faces' orientation")
-    r.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
-    r.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
-    f = _sub(sub, "filters", "list the installed filters, or describe one")
-    f.add_argument("name", nargs="?", help="a filter name")
-    a = _sub(sub, "apply", "run a chain of filters on a mesh or point cloud and write the result")
-    a.add_argument("input", help="mesh or point cloud file (PLY, NPZ, OBJ, OFF, STL, PCD, ...)")
-    a.add_argument("output", help="output file (.ply or .npz)")
-    a.add_argument("-f", "--filter", action="append", default=[], metavar="NAME:key=value,...",
-                   help="a filter and its parameters (repeatable; run in order)")
-    a.add_argument("--chain", help="a TOML chain file (run before any -f)")
-    a.add_argument("--save-chain", metavar="TOML", help="also write the chain that was run")
-    a.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
-    a.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
-    a.add_argument("--cache", nargs="?", const=True, metavar="DIR",
-                   help="keep spectra on disk (default folder: $O3DHEAT_CACHE or the user cache folder, ~/.cache/o3dheat on Linux)")
-    b = _sub(sub, "batch", "run a chain of filters on many files (in parallel, resumable)")
-    b.add_argument("inputs", nargs="+", metavar="INPUT", help="files or quoted glob patterns ('scans/*.ply')")
-    b.add_argument("--out", required=True, metavar="DIR", help="output folder (created): DIR/<input stem>.ply")
-    b.add_argument("-f", "--filter", action="append", default=[], metavar="NAME:key=value,...",
-                   help="a filter and its parameters (repeatable; run in order)")
-    b.add_argument("--chain", help="a TOML chain file (run before any -f)")
-    b.add_argument("--scheduler", help="'sequential', or a Dask scheduler address (default: a local cluster)")
-    b.add_argument("--format", choices=["ply", "npz"], default="ply", help="output format (default: %(default)s)")
-    b.add_argument("--ascii", action="store_true", help="ASCII PLY instead of binary")
-    b.add_argument("--overwrite", action="store_true",
-                   help="recompute every output, removing those of files that fail (default: skip the "
-                        "outputs that exist)")
-    b.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="a progress bar (default: when stderr is a terminal)")
-    s = _sub(sub, "spectrum", "compute the smallest eigenpairs of a mesh and save them")
-    s.add_argument("input", help="mesh file")
-    s.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
-    s.add_argument("--mass", default="consistent", choices=list(fem.MASS_KINDS),
-                   help="the mass B of L x = λ B x (o3dheat.spectral.fem.MASS_KINDS; default: %(default)s): "
-                        + "; ".join(f"{name}: {text}" for name, text in fem.MASS_KINDS.items()))
-    s.add_argument("-o", "--out", required=True,
-                   help="output .npz, in a folder that exists: the whole spectrum (eigenpairs, operators, areas, "
-                        "faces, residuals), read back by o3dheat.Spectrum.load")
-    s.add_argument("--overwrite", action="store_true", help="allow replacing an existing output")
-    st = _sub(sub, "study", "robustness of descriptors across resamplings (a table and plots)")
-    st.add_argument("config", help="study TOML file")
-    st.add_argument("--out", required=True, help="output folder, created (tasks/, study.csv, plots)")
-    st.add_argument("--scheduler", help="'sequential', or a Dask scheduler address (default: a local cluster)")
-    g = _sub(sub, "figure", "draw the paper's kinds of figures (Figs. 1-7) for a mesh")
-    g.add_argument("input", help="mesh file")
-    g.add_argument("-o", "--out", required=True, help="output folder (created)")
-    g.add_argument("--attribute", help="vertex attribute to study (default: height + noise)")
-    g.add_argument("--column", type=int, metavar="N",
-                   help="the column of a multi-column --attribute (0-based, -1 the last); needed when it has "
-                        "several")
-    g.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
-    g.add_argument("--noise", type=float, default=0.1, help="noise added to the height, relative (default: %(default)s)")
-    g.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
-    g.add_argument("--up", default="z", choices=["x", "y", "z"], help="axis drawn vertical (default: %(default)s)")
-    g.add_argument("--overwrite", action="store_true", help="allow replacing the figures of an earlier run")
+    for name, (help_text, arguments, _) in COMMANDS.items():
+        arguments(_sub(sub, name, help_text))
     return p
 
 
 def _parse_filter(text):
     """'name:key=value,key=value' -> (name, {key: value parsed by the filter's types})."""
     import typing
-
 
     name, _, rest = text.partition(":")
     name = name.strip()
@@ -308,7 +336,6 @@ def _chain(args):
 
 
 def _batch(args):
-
     chain = _chain(args)
     try:
         table = batch.run(chain, args.inputs, args.out, scheduler=args.scheduler, overwrite=args.overwrite,
@@ -328,7 +355,6 @@ def _batch(args):
 
 
 def _apply(args):
-
     src, dst = Path(args.input), Path(args.output)
     if dst.suffix.lower() not in (".ply", ".npz"):
         raise MeshError(f"the output must end in .ply or .npz: {dst}")
@@ -359,7 +385,6 @@ def _apply(args):
 
 
 def _repair(args):
-
     src, dst = Path(args.input), Path(args.output)
     if dst.suffix.lower() not in (".ply", ".npz"):
         raise MeshError(f"the output must end in .ply or .npz: {dst}")
@@ -375,7 +400,6 @@ def _repair(args):
 
 
 def _filters(args):
-
     if not args.name:
         for name in flt.names():
             print(f"{name:<18} {flt.describe(name)['summary']}")
@@ -387,7 +411,6 @@ def _filters(args):
 
 
 def _spectrum(args):
-
     out = Path(args.out)
     if out.suffix.lower() != ".npz":
         raise MeshError(f"the spectrum is written as .npz: {out}")
@@ -401,7 +424,6 @@ def _spectrum(args):
 
 
 def _figure(args):
-
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise MeshError(f"{out} is a file: -o takes a folder")
@@ -430,7 +452,6 @@ def _figure(args):
 
 
 def _study(args):
-
     out = Path(args.out)
     _check_folder(out, "--out")  # before the config's meshes are read
     kw = study.load_config(args.config)
@@ -478,7 +499,7 @@ def main(argv=None):
             logging.getLogger(name).setLevel(logging.WARNING)
         for handler in logging.getLogger().handlers:
             handler.addFilter(_quiet_dask)
-    command = COMMANDS.get(args.command)
+    command = COMMANDS.get(args.command, (None, None, None))[2]
     if command is None:
         p.print_help()
         return 1
@@ -491,7 +512,6 @@ def main(argv=None):
 
 
 def _demo(args):
-
     out = args.out
     if out is None:  # the default name, or the next free one: a rerun keeps earlier results
         out, i = Path("o3dheat-demo") / "bunny_heat.ply", 1
@@ -505,7 +525,6 @@ def _demo(args):
 
 
 def _info(args):
-
     g = io.read_geometry(args.mesh)
     if not hasattr(g, "triangle"):
         raise MeshError(f"{args.mesh} is a point cloud ({len(g.point.positions)} points): info checks meshes")
@@ -513,8 +532,18 @@ def _info(args):
 
 
 #: subcommand -> its function (args -> exit code, None for 0): the one dispatch of :func:`main`
-COMMANDS = {"demo": _demo, "info": _info, "repair": _repair, "filters": _filters, "apply": _apply,
-            "batch": _batch, "spectrum": _spectrum, "figure": _figure, "study": _study}
+#: the commands: name -> (one-line help, its arguments, what runs it), in the order of --help
+COMMANDS = {
+    "demo": ("run the demo on the embedded bunny", _demo_arguments, _demo),
+    "info": ("check a mesh and report what matters to the FEM operators", _info_arguments, _info),
+    "repair": ("repair a mesh: weld, drop bad faces, split non-manifold edges and vertices, orient", _repair_arguments, _repair),
+    "filters": ("list the installed filters, or describe one", _filters_arguments, _filters),
+    "apply": ("run a chain of filters on a mesh or point cloud and write the result", _apply_arguments, _apply),
+    "batch": ("run a chain of filters on many files (in parallel, resumable)", _batch_arguments, _batch),
+    "spectrum": ("compute the smallest eigenpairs of a mesh and save them", _spectrum_arguments, _spectrum),
+    "study": ("robustness of descriptors across resamplings (a table and plots)", _study_arguments, _study),
+    "figure": ("draw the paper's kinds of figures (Figs. 1-7) for a mesh", _figure_arguments, _figure),
+}
 
 
 if __name__ == "__main__":  # pragma: no cover
