@@ -48,7 +48,8 @@ def compiled(fn):
 
 
 def any_compiled(module):
-    """Whether this process compiled (rather than loaded from the cache) a loop of ``module``.
+    """Whether this process compiled (rather than loaded from the cache) a loop of ``module`` or of
+    a module inside it (``"o3dheat.topology"`` covers the whole stage).
 
     Examples
     --------
@@ -57,4 +58,4 @@ def any_compiled(module):
     True
     """
     return any(sum(k.stats.cache_misses.values()) > 0 for (mod, _), k in _COMPILED.items()
-               if mod == module and hasattr(k, "stats"))
+               if (mod == module or mod.startswith(module + ".")) and hasattr(k, "stats"))
