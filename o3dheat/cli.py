@@ -20,6 +20,7 @@ from o3dheat import demo, geometry, io
 from o3dheat.errors import MeshError, SolverError
 from o3dheat.pipelines import batch, study
 from o3dheat.pipelines import filters as flt
+from o3dheat.pipelines._dask_logs import DaskLogs
 from o3dheat.spectral import fem, heatflow, kernel, spectrum
 from o3dheat.visualization import figures
 
@@ -476,12 +477,6 @@ def _study(args):
     return 0
 
 
-def _quiet_dask(record):
-    """Log filter: Dask's and its web stack's records below WARNING are dropped (see --verbose)."""
-    return record.levelno >= logging.WARNING or not record.name.startswith(("distributed", "dask", "bokeh",
-                                                                              "tornado"))
-
-
 def main(argv=None):
     """Entry point of the ``o3dheat`` command; returns the exit code.
 
@@ -497,8 +492,9 @@ def main(argv=None):
     if not args.verbose:  # Dask logs every worker start and stop at INFO, on loggers of its own levels
         for name in ("distributed", "dask"):
             logging.getLogger(name).setLevel(logging.WARNING)
+        quiet = DaskLogs(logging.WARNING)  # below WARNING dropped, the rest on one line
         for handler in logging.getLogger().handlers:
-            handler.addFilter(_quiet_dask)
+            handler.addFilter(quiet)
     command = COMMANDS.get(args.command, (None, None, None))[2]
     if command is None:
         p.print_help()

@@ -7,6 +7,9 @@ from __future__ import annotations
 import contextlib
 import logging
 
+#: the loggers of Dask and its web stack (one list: the cluster, the workers and the command filter them)
+DASK_LOGGERS = ("distributed", "dask", "bokeh", "tornado", "asyncio")
+
 
 class DaskLogs(logging.Filter):
     """Records of Dask and its web stack below ``level`` dropped, the others on one line (no
@@ -17,7 +20,7 @@ class DaskLogs(logging.Filter):
         self.level = level
 
     def filter(self, record):
-        if not record.name.startswith(("distributed", "dask", "tornado", "asyncio")):
+        if not record.name.startswith(DASK_LOGGERS):
             return True
         if record.levelno < self.level:
             return False
@@ -31,7 +34,7 @@ class DaskLogs(logging.Filter):
 def dask_logs(level):
     """The handlers that Dask's records reach (the root's and Dask's own) filtered by
     :class:`DaskLogs` for the duration."""
-    handlers = {h for name in ("", "distributed", "tornado", "asyncio") for h in logging.getLogger(name).handlers}
+    handlers = {h for name in ("", *DASK_LOGGERS) for h in logging.getLogger(name).handlers}
     flt = DaskLogs(level)
     for h in handlers:
         h.addFilter(flt)
