@@ -2,7 +2,7 @@
 
 Every error raised on purpose by o3dheat is a :class:`MeshError` (a ``ValueError``) or a
 :class:`SolverError` (a ``RuntimeError``; :class:`ConvergenceError` and
-:class:`o3dheat.spectral.linalg.OutOfMemory` are kinds of it), with a message that says what was wrong and
+:class:`o3dheat.spectral.memory.OutOfMemory` are kinds of it), with a message that says what was wrong and
 what to do about it.
 """
 

@@ -8,6 +8,6 @@ from .spectrum import Spectrum, clear_cache, eigensolve, set_cache, shared_eigen
 
 # isort: split
 # the modules, as attributes of the package
-from . import diffusion, fem, heatflow, kernel, krylov, lanczos, linalg, spectrum  # noqa: E402
+from . import diffusion, fem, heatflow, kernel, krylov, lanczos, linalg, memory, spectrum  # noqa: E402
 
-__all__ = ["mass_matrix", "stiffness_matrix", "Spectrum", "clear_cache", "eigensolve", "set_cache", "shared_eigensolve", "HeatKernel", "VARIANTS", "heat_kernel", "diffuse", "HeatFlow", "heat_flow", "fem", "linalg", "lanczos", "spectrum", "kernel", "diffusion", "krylov", "heatflow"]
+__all__ = ["mass_matrix", "stiffness_matrix", "Spectrum", "clear_cache", "eigensolve", "set_cache", "shared_eigensolve", "HeatKernel", "VARIANTS", "heat_kernel", "diffuse", "HeatFlow", "heat_flow", "fem", "linalg", "memory", "lanczos", "spectrum", "kernel", "diffusion", "krylov", "heatflow"]

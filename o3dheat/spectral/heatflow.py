@@ -54,7 +54,8 @@ from o3dheat.geometry._loops import abs_row_sums, components
 from . import fem
 from .kernel import NORMALIZATIONS, first_nonzero, mass_of, transfer_function
 from .krylov import MIN_STEPS, propagate
-from .linalg import analyze, available_memory, check_memory, factorize
+from .linalg import analyze, factorize
+from .memory import available_memory, check_memory
 from .spectrum import memoized, memoized_has, shared_eigensolve
 
 __all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "shift_groups", "SPLIT_RANGE", "METHODS"]

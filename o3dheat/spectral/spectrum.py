@@ -37,7 +37,8 @@ from o3dheat.geometry import prepare
 
 from . import _cache, fem
 from .lanczos import block_lanczos, rayleigh_ritz
-from .linalg import OutOfMemory, available_memory, check_memory, factorize
+from .linalg import factorize
+from .memory import OutOfMemory, available_memory, check_memory
 
 __all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "peak_memory", "default_cache_dir", "shared_eigensolve", "set_cache",
            "memoized", "memoized_has", "cache_max_bytes", "inverse_mass_bound"]
@@ -767,7 +768,7 @@ def peak_memory(n, k=100, block=8):
     vertex for the Cholesky factor, the operators and the blocks of vectors, as measured on a mesh
     of 1M vertices (``scripts/bench_spectrum.py``: resident memory added while solving peaked at
     3.4 GiB for k = 100, 6.4 GiB for k = 300). A mesh fits when this is below the
-    memory available; eigensolve refuses with :class:`o3dheat.spectral.linalg.OutOfMemory` otherwise.
+    memory available; eigensolve refuses with :class:`o3dheat.spectral.memory.OutOfMemory` otherwise.
 
     Parameters
     ----------

@@ -355,7 +355,7 @@ def test_split_vertex_diffusion_equals_welded():
 
 
 def test_stl_round_trip_is_welded(tmp_path, caplog):
-    from o3dheat.demo import sample_mesh
+    from o3dheat.io import sample_mesh
 
     path = str(tmp_path / "bunny.stl")
     m = sample_mesh("bunny").to_legacy()
@@ -451,14 +451,14 @@ def test_one_cache_bounded_cleaned_and_in_the_platform_folder(tmp_path, monkeypa
 
 
 def test_eigensolve_refuses_what_does_not_fit_in_memory(monkeypatch, irregular_mesh):
-    import o3dheat.spectral.linalg as la
+    import o3dheat.spectral.memory as mm
     import o3dheat.spectral.spectrum as S
 
-    monkeypatch.setattr(la, "memory_limits", lambda: {"system": 10_000})  # bytes
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": 10_000})  # bytes
     monkeypatch.setattr(S, "available_memory", lambda: 10_000)
-    with pytest.raises(la.OutOfMemory, match="eigenpairs on .* vertices needs about .* GiB"):
+    with pytest.raises(mm.OutOfMemory, match="eigenpairs on .* vertices needs about .* GiB"):
         o3dheat.eigensolve(irregular_mesh, k=20, method="lanczos")
-    with pytest.raises(la.OutOfMemory, match="dense eigensolve"):
+    with pytest.raises(mm.OutOfMemory, match="dense eigensolve"):
         o3dheat.eigensolve(irregular_mesh, k=20, method="dense")
 
 
