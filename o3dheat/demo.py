@@ -10,118 +10,19 @@ downloaded.
 
 from __future__ import annotations
 
-import importlib.resources
 import logging
 import time
 from pathlib import Path
 
 import numpy as np
 
+from o3dheat.io import bumpy_torus, default_mesh  # noqa: F401 - bumpy_torus: run's example uses it (d.bumpy_torus)
 from o3dheat.spectral import HeatFlow, HeatKernel, eigensolve
 from o3dheat.topology import Surface, critical_points
 
-__all__ = ["default_mesh", "sample_mesh", "SAMPLES", "bumpy_torus", "run"]
-
-# closed 2-manifolds among pymeshlab's sample meshes (used offline by the studies)
-SAMPLES = {"bunny": "bunny.obj", "airplane": "airplane.obj", "bone": "bone.ply"}
+__all__ = ["run"]
 
 log = logging.getLogger("o3dheat")
-
-
-def default_mesh():
-    """The embedded default mesh and its name.
-
-    Returns
-    -------
-    mesh : o3d.t.geometry.TriangleMesh
-        The Stanford Bunny shipped with pymeshlab (28k vertices, genus 0), or a procedural bumpy
-        torus when pymeshlab's sample file is absent.
-    name : str
-
-    Examples
-    --------
-    >>> import o3dheat.demo as d
-    >>> mesh, name = d.default_mesh()
-    >>> name in ("bunny", "bumpy torus")
-    True
-    """
-    import open3d as o3d
-
-    try:
-        path = importlib.resources.files("pymeshlab") / "tests" / "sample_meshes" / "bunny.obj"
-        if path.is_file():
-            legacy = o3d.io.read_triangle_mesh(str(path))
-            if len(legacy.triangles):
-                return o3d.t.geometry.TriangleMesh.from_legacy(legacy), "bunny"
-    except (ModuleNotFoundError, OSError):
-        pass
-    return bumpy_torus(), "bumpy torus"
-
-
-def sample_mesh(name):
-    """A mesh shipped with an installed package, usable offline: "bunny", "airplane", "bone"
-    (pymeshlab's samples) or "torus" (:func:`bumpy_torus`).
-
-    Returns
-    -------
-    o3d.t.geometry.TriangleMesh
-        Unreferenced vertices removed.
-
-    Raises
-    ------
-    MeshError
-        Unknown name, or pymeshlab's sample file missing.
-
-    Examples
-    --------
-    >>> import o3dheat.demo as d
-    >>> len(d.sample_mesh("airplane").triangle.indices)
-    10796
-    """
-    import open3d as o3d
-
-    from o3dheat.errors import MeshError
-
-    if name == "torus":
-        return bumpy_torus()
-    if name not in SAMPLES:
-        raise MeshError(f"unknown sample mesh {name!r}: use one of {', '.join([*SAMPLES, 'torus'])}")
-    path = importlib.resources.files("pymeshlab") / "tests" / "sample_meshes" / SAMPLES[name]
-    legacy = o3d.io.read_triangle_mesh(str(path)) if path.is_file() else o3d.geometry.TriangleMesh()
-    if len(legacy.triangles) == 0:
-        raise MeshError(f"pymeshlab's sample {SAMPLES[name]} is not installed")
-    legacy.remove_unreferenced_vertices()
-    return o3d.t.geometry.TriangleMesh.from_legacy(legacy)
-
-
-def bumpy_torus(radial=96, tubular=48):
-    """A procedural torus with bumps (no files needed).
-
-    Parameters
-    ----------
-    radial, tubular : int
-        Resolution around the ring and around the tube.
-
-    Returns
-    -------
-    o3d.t.geometry.TriangleMesh
-
-    Examples
-    --------
-    >>> import o3dheat.demo as d
-    >>> len(d.bumpy_torus(32, 16).vertex.positions)
-    512
-    """
-    import open3d as o3d
-
-    m = o3d.t.geometry.TriangleMesh.create_torus(1.0, 0.4, radial, tubular, float_dtype=o3d.core.float64)
-    V = m.vertex.positions.numpy()
-    u = np.arctan2(V[:, 1], V[:, 0])
-    c = np.stack([np.cos(u), np.sin(u), 0 * u], 1)
-    d = V - c
-    V = c + d * (1 + 0.15 * np.sin(5 * u) * np.cos(3 * np.arctan2(d[:, 2], np.sum(d * c, 1))))[:, None]
-    m.vertex.positions = o3d.core.Tensor(V)
-    return m
 
 
 def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed=0, mesh=None,

@@ -49,7 +49,7 @@ def bunny(n):
     keeps detail where curvature is high: a curvature-adaptive, strongly non-uniform sampling)."""
     import fast_simplification
 
-    from o3dheat.demo import default_mesh
+    from o3dheat.io import default_mesh
 
     leg = default_mesh()[0].to_legacy()
     while len(leg.vertices) < 1.5 * n:

@@ -14,7 +14,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from o3dheat.demo import bumpy_torus, default_mesh
+from o3dheat.io import bumpy_torus, default_mesh
 from o3dheat.visualization.figures import paper_figures
 
 

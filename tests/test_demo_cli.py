@@ -8,8 +8,8 @@ import numpy as np
 
 import o3dheat
 from o3dheat.cli import main
-from o3dheat.demo import bumpy_torus, default_mesh, run
-from o3dheat.io import read_mesh
+from o3dheat.demo import run
+from o3dheat.io import bumpy_torus, default_mesh, read_mesh
 
 
 def test_default_mesh_is_the_bunny():

@@ -39,7 +39,7 @@ def test_study_figures(tmp_path):
 @pytest.mark.slow
 @pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
 def test_paper_figures_on_the_bunny(tmp_path):
-    from o3dheat.demo import default_mesh
+    from o3dheat.io import default_mesh
 
     mesh, name = default_mesh()
     index = figures.paper_figures(mesh, tmp_path, k=60, name=name, up="y", max_faces=8000)
@@ -208,13 +208,13 @@ def test_gallery_colorbars_name_the_field_drawn():
 
 # ------------------------------------------------------------------ tracks across scales (issue 24)
 def bunny_like():
-    from o3dheat.demo import sample_mesh
     from o3dheat.geometry.sampling import decimate
+    from o3dheat.io import sample_mesh
 
     try:
         return decimate(sample_mesh("bunny"), target_faces=20000).arrays, "y"
     except o3dheat.MeshError:  # pymeshlab's sample absent: a bumpy torus of about the size
-        return decimate(o3dheat.demo.sample_mesh("torus"), target_faces=20000).arrays, "z"
+        return decimate(sample_mesh("torus"), target_faces=20000).arrays, "z"
 
 
 @pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")

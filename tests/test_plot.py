@@ -79,7 +79,7 @@ def touches_border(img):
 def test_every_part_in_frame():
     """A mesh of two parts far apart, and pymeshlab's airplane (wide wings): everything is in the
     picture, with a margin, and the picture is no larger than the geometry needs."""
-    from o3dheat.demo import sample_mesh
+    from o3dheat.io import sample_mesh
 
     V1, F1 = icosphere(2)
     V = np.r_[V1, V1 * 0.5 + [6.0, 0.0, 1.0]]

@@ -13,7 +13,7 @@ from o3dheat.topology import Surface
 
 
 def test_decimate_gives_an_irregular_2_manifold():
-    from o3dheat.demo import default_mesh
+    from o3dheat.io import default_mesh
 
     bunny, _ = default_mesh()
     for r in (0.5, 0.8, 0.95):
@@ -91,7 +91,7 @@ def test_transfer_is_the_identity_on_the_same_mesh():
 
 
 def test_decimation_map():
-    from o3dheat.demo import default_mesh
+    from o3dheat.io import default_mesh
 
     bunny, _ = default_mesh()
     V, _ = o3dheat.as_arrays(bunny)
@@ -158,7 +158,7 @@ def _jitter_report(V0, F, r):
 
 @pytest.fixture(scope="module")
 def jitter_meshes():
-    from o3dheat.demo import sample_mesh
+    from o3dheat.io import sample_mesh
 
     return {"bunny": decimate(sample_mesh("bunny"), target_faces=20000).arrays,
             "airplane": o3dheat.as_arrays(sample_mesh("airplane")),

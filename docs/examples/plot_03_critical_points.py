@@ -12,8 +12,8 @@ rest (§3.1, §3.3). The δ-simplified ones then drive an approximation: ``Φ_t`
 import numpy as np
 
 import o3dheat
-from o3dheat.demo import default_mesh
 from o3dheat.geometry.sampling import decimate
+from o3dheat.io import default_mesh
 
 bunny, _ = default_mesh()
 mesh = decimate(bunny, reduction=0.8).mesh

@@ -13,8 +13,8 @@ import numpy as np
 from lapy import Solver, TriaMesh, heat
 
 import o3dheat
-from o3dheat.demo import default_mesh
 from o3dheat.geometry.sampling import decimate
+from o3dheat.io import default_mesh
 
 bunny, _ = default_mesh()
 V, F = o3dheat.as_arrays(decimate(bunny, reduction=0.9))

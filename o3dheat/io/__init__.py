@@ -1,18 +1,20 @@
-"""Files: mesh reading and writing (one READERS/WRITERS table), atomic writes, TOML."""
+"""Files: mesh reading and writing (one READERS/WRITERS table), atomic writes, TOML, sample meshes.
 
-from .meshes import (
-    WRITERS,
-    atomic_write,
-    atomic_write_text,
-    read_geometry,
-    read_mesh,
-    read_toml,
-    write_geometry,
-    write_mesh,
-)
+Entry points: :func:`read_mesh`, :func:`read_geometry`, :func:`write_mesh`, :func:`write_geometry`
+(:mod:`o3dheat.io.meshes`), :func:`atomic_write`, :func:`atomic_write_text`
+(:mod:`o3dheat.io.files`), :func:`read_toml` (:mod:`o3dheat.io.toml`), :func:`sample_mesh`,
+:func:`default_mesh`, :func:`bumpy_torus` (:mod:`o3dheat.io.samples`).
+"""
+
+from .files import atomic_write, atomic_write_text
+from .meshes import READERS, WRITERS, read_geometry, read_mesh, write_geometry, write_mesh
+from .samples import SAMPLES, bumpy_torus, default_mesh, sample_mesh
+from .toml import read_toml
 
 # isort: split
 # the modules, as attributes of the package
-from . import meshes  # noqa: E402
+from . import files, meshes, samples, toml  # noqa: E402
 
-__all__ = ["WRITERS", "atomic_write", "atomic_write_text", "read_geometry", "read_mesh", "read_toml", "write_geometry", "write_mesh", "meshes"]
+__all__ = ["READERS", "WRITERS", "atomic_write", "atomic_write_text", "read_geometry", "read_mesh", "read_toml",
+           "write_geometry", "write_mesh", "SAMPLES", "bumpy_torus", "default_mesh", "sample_mesh",
+           "files", "meshes", "samples", "toml"]

@@ -606,8 +606,8 @@ def load_config(path):
 def _builtin(src):
     """``builtin:NAME[@FACES]``: a sample mesh (:func:`o3dheat.demo.sample_mesh`), optionally
     decimated to FACES faces."""
-    from o3dheat.demo import sample_mesh
     from o3dheat.geometry import decimate
+    from o3dheat.io import sample_mesh
 
     name, _, size = src.partition(":")[2].partition("@")
     mesh = sample_mesh(name)

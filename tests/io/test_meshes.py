@@ -1,4 +1,4 @@
-"""o3dheat.io: lossless PLY round trips and atomic writes."""
+"""o3dheat.io.meshes (and the codecs behind it): lossless PLY round trips, OBJ and STL, atomic writes."""
 
 import numpy as np
 import open3d as o3d
@@ -48,14 +48,14 @@ def test_write_is_atomic(tmp_path, mesh, monkeypatch, binary):
     p.write_bytes(b"previous content")
     import plyfile
 
-    import o3dheat.io
+    import o3dheat.io._ply
 
     def boom(*args):
         args[0 if binary else 1].write(b"partial")  # (fh, ply, vert, F) or (self, stream)
         raise OSError("disk full")
 
     if binary:
-        monkeypatch.setattr(o3dheat.io.meshes, "_write_binary_ply", boom)
+        monkeypatch.setattr(o3dheat.io._ply, "_write_binary_ply", boom)
     else:
         monkeypatch.setattr(plyfile.PlyData, "write", boom)
     with pytest.raises(OSError):
@@ -636,14 +636,6 @@ def test_written_files_pass_the_header_check_exactly(tmp_path):
         read_mesh(p)
 
 
-def test_non_utf8_toml_is_a_mesh_error(tmp_path):
-    from o3dheat.io import read_toml
-    p = tmp_path / "s.toml"
-    p.write_bytes(b"name = \"\xff\xfe\"\n")
-    with pytest.raises(o3dheat.MeshError, match="s.toml.*not UTF-8"):
-        read_toml(p)
-
-
 def test_crafted_npz_is_refused(tmp_path):
     from o3dheat.io import read_geometry
     p = tmp_path / "obj.npz"
@@ -662,17 +654,17 @@ def test_binary_ply_is_plyfiles_own_bytes_and_reads_back_the_same_both_ways(tmp_
     of triangle lists what plyfile reads face by face."""
     import plyfile
 
-    import o3dheat.io
+    import o3dheat.io._ply
 
     geometry = mesh if faces else o3d.t.geometry.PointCloud(mesh.vertex.positions)
     fast, slow = tmp_path / "fast.ply", tmp_path / "slow.ply"
     write_geometry(fast, geometry)
     with monkeypatch.context() as m:
-        m.setattr(o3dheat.io.meshes, "_write_binary_ply", lambda fh, ply, vert, F: ply.write(fh))
+        m.setattr(o3dheat.io._ply, "_write_binary_ply", lambda fh, ply, vert, F: ply.write(fh))
         write_geometry(slow, geometry)
     assert fast.read_bytes() == slow.read_bytes()
     a = o3dheat.io.read_geometry(fast)
-    monkeypatch.setattr(o3dheat.io.meshes, "_TRIANGLE_LISTS", {})  # plyfile's face-by-face reading
+    monkeypatch.setattr(o3dheat.io._ply, "_TRIANGLE_LISTS", {})  # plyfile's face-by-face reading
     b = o3dheat.io.read_geometry(fast)
     attrs = (lambda g: g.vertex) if faces else (lambda g: g.point)
     assert sorted(attrs(a)) == sorted(attrs(b))

@@ -1,0 +1,55 @@
+"""TOML configuration files (filter chains, studies): :func:`read_toml`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from o3dheat.errors import MeshError
+
+try:
+    import tomllib
+except ImportError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+if TYPE_CHECKING:  # o3dheat.typing imports Open3D (1.5 s): for annotations only
+    from o3dheat.typing import PathLike
+
+__all__ = ["read_toml"]
+
+
+def read_toml(path: PathLike) -> dict[str, Any]:
+    r"""A TOML file as a dict.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file (UTF-8 text).
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    MeshError
+        The file is not UTF-8 or not valid TOML.
+    OSError
+        The file cannot be read (missing, a folder, no permission): the file system's own error.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from o3dheat.io import read_toml
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "chain.toml"
+    >>> _ = p.write_text('[[filter]]\nname = "scalar"\n')
+    >>> read_toml(p)
+    {'filter': [{'name': 'scalar'}]}
+    """
+    path = Path(path)
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as e:
+        raise MeshError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from e
+    except tomllib.TOMLDecodeError as e:
+        raise MeshError(f"{path}: not valid TOML ({e})") from e

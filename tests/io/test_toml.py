@@ -1,0 +1,22 @@
+"""o3dheat.io.toml: TOML files, decoding errors as MeshError, file-system errors as OSError."""
+
+import pytest
+
+import o3dheat
+
+
+def test_non_utf8_toml_is_a_mesh_error(tmp_path):
+    from o3dheat.io import read_toml
+    p = tmp_path / "s.toml"
+    p.write_bytes(b"name = \"\xff\xfe\"\n")
+    with pytest.raises(o3dheat.MeshError, match="s.toml.*not UTF-8"):
+        read_toml(p)
+
+
+def test_unreadable_toml_is_the_file_systems_error(tmp_path):
+    """Issue 23: "OSError stays OSError": a missing file is the OSError open() raises, naming it."""
+    from o3dheat.io import read_toml
+    with pytest.raises(FileNotFoundError, match="missing.toml"):
+        read_toml(tmp_path / "missing.toml")
+    with pytest.raises(IsADirectoryError):
+        read_toml(tmp_path)
