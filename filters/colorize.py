@@ -7,12 +7,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.pipelines.filters import check_column, need_attribute, param
-
-from ._common import Site, checked
+from o3dheat.pipelines.site import (
+    Site,
+    check_column,
+    checked,
+    need_attribute,
+    param,
+)
 
 
 def _colormap(name):
+    # here, not at the top: importing matplotlib costs ~0.25 s, which `import o3dheat` avoids
     from matplotlib import colormaps
 
     if name not in colormaps:

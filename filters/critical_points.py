@@ -7,9 +7,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.pipelines.filters import check_column, need_attribute
-
-from ._common import Operators, Site, checked, fraction, persistence
+from o3dheat.geometry.sampling import nearest
+from o3dheat.pipelines.site import (
+    Operators,
+    Site,
+    check_column,
+    checked,
+    fraction,
+    need_attribute,
+    persistence,
+)
+from o3dheat.topology import Surface, critical_points, simplify_critical_points
 
 
 @dataclass(frozen=True)
@@ -85,22 +93,18 @@ class CriticalPointsFilter:
             1 minimum, 2 saddle, 3 maximum (on a point cloud: at the points nearest the critical
             vertices of its reconstructed surface).
         """
-        import o3dheat
-
         site = Site(geometry, self.operators, step=self)
         f, V, F, g = site.scalar_on_surface(self.attribute, self.column)
-        S = o3dheat.topology.Surface((V, F))  # once for both (duplicate vertices welded once)
-        kind = o3dheat.critical_points(S, g).kind
+        S = Surface((V, F))  # once for both (duplicate vertices welded once)
+        kind = critical_points(S, g).kind
         if self.delta is not None or self.keep_fraction is not None:
-            keep = o3dheat.simplify_critical_points(S, g, delta=self.delta, keep_fraction=self.keep_fraction)
+            keep = simplify_critical_points(S, g, delta=self.delta, keep_fraction=self.keep_fraction)
             mask = np.zeros(len(kind), bool)
             mask[keep] = True
             if S.representative is not None:  # the copies of a welded vertex follow their first copy
                 mask = mask[S.representative]
             kind[~mask] = 0
         if not site.is_mesh:  # each surface label goes to its nearest point
-            from o3dheat.geometry.sampling import nearest
-
             out = np.zeros(site.n, np.int8)
             crit = np.flatnonzero(kind)
             out[nearest(np.arange(site.n), site.P, V[crit])] = kind[crit]

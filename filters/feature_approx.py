@@ -7,22 +7,24 @@ from dataclasses import dataclass
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.pipelines.filters import check_column, need_attribute, param
-from o3dheat.spectral.kernel import mass_of
-
-from ._common import (
+from o3dheat.pipelines.site import (
     Method,
     Operators,
     Site,
     Variant,
+    check_column,
     checked,
     eigenpairs,
     fraction,
     kernel_of,
+    need_attribute,
+    param,
     persistence,
     smoother,
     tolerance,
 )
+from o3dheat.spectral.kernel import mass_of
+from o3dheat.topology import feature_driven, simplify_critical_points, track_critical_points
 
 
 @dataclass(frozen=True)
@@ -123,8 +125,6 @@ class FeatureApprox:
             A copy of the input (tensor geometry) with ``<attribute>_glob`` and ``<attribute>_loc``
             added, (n,) each, their sum the field.
         """
-        import o3dheat
-
         site = Site(geometry, self.operators, step=self)
         f, V, F, g = site.scalar_on_surface(self.attribute, self.column)
         phi = smoother(site, self.method, self.k, self.variant, tol=self.tol)
@@ -132,14 +132,14 @@ class FeatureApprox:
             times = np.r_[0.0, np.geomspace(self.lifetime / 1000, self.lifetime, 40)]
             fields = phi.smooth(g, times)
             fields[:, 0] = g  # t = 0 is the field itself (a truncated kernel gives its projection there)
-            A = o3dheat.track_critical_points((V, F), fields, times).features()
+            A = track_critical_points((V, F), fields, times).features()
         else:
-            A = o3dheat.simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)
+            A = simplify_critical_points((V, F), g, delta=self.delta, keep_fraction=self.keep_fraction)
         if self.t is None:  # the paper's scales, from the spectrum
             t = float(kernel_of(site, self.k, variant=self.variant).scales(10)[self.scale - 1])
         else:
             t = self.t
-        glob, _ = o3dheat.feature_driven(phi, g, A, t)
+        glob, _ = feature_driven(phi, g, A, t)
         glob = site.from_surface(glob)
         site.set(f"{self.attribute}_glob", glob)
         site.set(f"{self.attribute}_loc", f - glob)

@@ -5,19 +5,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from o3dheat.errors import MeshError
-from o3dheat.pipelines.filters import check_column, need_attribute
-from o3dheat.spectral.kernel import mass_of
-
-from ._common import (
+from o3dheat.pipelines.site import (
     Grid,
     Method,
     Normalization,
     Operators,
     Site,
     Variant,
+    check_column,
     checked,
     eigenpairs,
     kernel_of,
+    need_attribute,
     scale_count,
     smoother,
     time_count,
@@ -25,6 +24,7 @@ from ._common import (
     times_of,
     tolerance,
 )
+from o3dheat.spectral.kernel import mass_of
 
 
 @dataclass(frozen=True)

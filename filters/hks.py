@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from o3dheat.spectral.kernel import HKS_DEFAULT, mass_of
-
-from ._common import (
+from o3dheat.pipelines.site import (
     Grid,
     HksForm,
     Normalization,
@@ -21,6 +19,7 @@ from ._common import (
     time_list,
     times_of,
 )
+from o3dheat.spectral.kernel import HKS_DEFAULT, mass_of
 
 
 @dataclass(frozen=True)

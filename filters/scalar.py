@@ -8,9 +8,15 @@ from typing import Literal
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.pipelines.filters import need_attribute, param
-
-from ._common import Operators, Site, checked
+from o3dheat.geometry import prepare
+from o3dheat.pipelines.site import (
+    Operators,
+    Site,
+    checked,
+    need_attribute,
+    param,
+)
+from o3dheat.spectral import fem
 
 
 @dataclass(frozen=True)
@@ -96,9 +102,6 @@ class Scalar:
             span = float(np.ptp(f)) if f.size else 0.0
             values, name = f + self.sigma * (span or 1.0) * rng.standard_normal(f.shape), f"{self.attribute}_noisy"
         else:
-            from o3dheat.geometry.mesh import prepare
-            from o3dheat.spectral import fem
-
             if site.operators == "robust" and not site.is_mesh:
                 raise MeshError(f"{self.kind} needs a surface: use operators='reconstruct' for point clouds")
             prep = prepare(site.surface())

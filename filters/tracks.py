@@ -8,22 +8,24 @@ import numpy as np
 
 from o3dheat import topology
 from o3dheat.errors import MeshError
-from o3dheat.pipelines.filters import check_column, need_attribute, param
-from o3dheat.spectral.kernel import mass_of
-
-from ._common import (
+from o3dheat.geometry.sampling import nearest
+from o3dheat.pipelines.site import (
     Method,
     Operators,
     Site,
     Variant,
+    check_column,
     checked,
     eigenpairs,
     kernel_of,
+    need_attribute,
+    param,
     scale_count,
     smoother,
     time_list,
     tolerance,
 )
+from o3dheat.spectral.kernel import mass_of
 
 #: the codes of ``<attribute>_track_kind``, as ``critical_points``' labels (0 is regular)
 KIND_CODES = {"minimum": topology.MINIMUM, "saddle": topology.SADDLE, "maximum": topology.MAXIMUM}
@@ -137,13 +139,13 @@ class TracksFilter:
         return {f"{self.attribute}_lifetime": 1, f"{self.attribute}_track_kind": 1}
 
     def grid(self, site):
-        """The times tracked on ``site`` (a :class:`~o3dheat_filters._common.Site`): ``t = 0`` first,
+        """The times tracked on ``site`` (a :class:`~o3dheat.pipelines.site.Site`): ``t = 0`` first,
         then ``times`` or the default log grid (see the class docstring).
 
         Examples
         --------
         >>> import open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> from o3dheat_filters.tracks import TracksFilter
         >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
         >>> TracksFilter(times=(0.1, 0.2)).grid(site).tolist()
@@ -175,18 +177,16 @@ class TracksFilter:
             A copy of the input (tensor geometry) with ``<attribute>_lifetime`` (n,) float64 and
             ``<attribute>_track_kind`` (n,) int8 added.
         """
-        import o3dheat
-
         site = Site(geometry, self.operators, step=self)
         f, V, F, g = site.scalar_on_surface(self.attribute, self.column)
-        S = o3dheat.topology.Surface((V, F))  # welded once, for the tracking and the outputs
+        S = topology.Surface((V, F))  # welded once, for the tracking and the outputs
         t = self.grid(site)
         phi = smoother(site, self.method, self.k, self.variant, tol=self.tol)
         fields = np.empty((len(g), len(t)))
         fields[:, 0] = g  # t = 0: the attribute itself (not its spectral projection)
         if len(t) > 1:
             fields[:, 1:] = np.asarray(phi.smooth(g, t[1:])).reshape(len(g), -1)
-        tr = o3dheat.track_critical_points(S, fields, t, radius=self.radius)
+        tr = topology.track_critical_points(S, fields, t, radius=self.radius)
         start = tr.first == 0
         verts = tr.vertex[start, 0]
         life = np.zeros(len(g))
@@ -196,8 +196,6 @@ class TracksFilter:
         if S.representative is not None:  # the copies of a welded vertex follow their first copy
             life, kind = life[S.representative], kind[S.representative]
         if not site.is_mesh:  # each surface value goes to its nearest point
-            from o3dheat.geometry.sampling import nearest
-
             crit = np.flatnonzero(kind)
             at = nearest(np.arange(site.n), site.P, V[crit])
             life_out, kind_out = np.zeros(site.n), np.zeros(site.n, np.int8)

@@ -229,8 +229,7 @@ def _parse_filter(text):
 
     name, _, rest = text.partition(":")
     name = name.strip()
-    cls = flt._class(name)
-    hints = flt._hints(cls)
+    hints = flt.parameter_types(name)
     params = {}
     items = [s.strip() for s in rest.split(",") if s.strip()]
     for i, item in enumerate(items):

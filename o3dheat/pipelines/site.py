@@ -1,8 +1,19 @@
-"""What every built-in filter shares: the working copy of the input, its attributes, its spectrum.
+"""The filter SDK: :class:`Site` (a filter's copy of its input: attributes, surface, spectrum), parameter types, kernels.
 
+Entry points: :class:`Site`; :func:`checked` (a filter's parameters checked at construction); the
+parameter types (:data:`Variant`, :data:`Grid`, :data:`HksForm`, :data:`Normalization`,
+:data:`Operators`, :data:`Method`) and bounds (:func:`eigenpairs`, :func:`scale_count`,
+:func:`time_list`, :func:`tolerance`, :func:`persistence`, :func:`fraction`); the smoothing of a
+site (:func:`kernel_of`, :func:`flow_of`, :func:`smoother`, :func:`times_of`, :func:`time_count`);
+and, for a filter's ``plan``, :func:`param`, :func:`check_column` and :func:`need_attribute`
+(of :mod:`o3dheat.pipelines.filters`). o3dheat's built-in filters (``o3dheat_filters``) are written
+with it, as a third-party plugin would be.
+
+Notes
+-----
 Meshes: the filter works on the mesh itself. Point clouds: ``operators="reconstruct"`` builds a
-surface through the points (:func:`o3dheat.geometry.sampling.reconstruct`, Poisson), moves input fields to
-its vertices (nearest point), computes there and brings results back to the points by
+surface through the points (:func:`o3dheat.geometry.sampling.reconstruct`, Poisson), moves input
+fields to its vertices (nearest point), computes there and brings results back to the points by
 barycentric interpolation at the closest surface point; ``operators="robust"`` uses
 robust-laplacian's point-cloud Laplacian and lumped mass on the points directly (no surface, so
 no critical points), when that package is installed (``pip install robust-laplacian``).
@@ -10,15 +21,36 @@ no critical points), when that package is installed (``pip install robust-laplac
 
 from __future__ import annotations
 
+import hashlib
 import logging
+import typing
 from typing import Annotated, Literal
 
 import numpy as np
+import open3d as o3d
 
 from o3dheat.errors import MeshError
-from o3dheat.geometry.mesh import as_arrays, check_points, mesh_of
-from o3dheat.pipelines.filters import OneOf, check_parameters, param
-from o3dheat.spectral import heatflow, kernel
+from o3dheat.geometry import as_arrays, sampling
+from o3dheat.geometry import mesh as meshes
+from o3dheat.spectral import HeatFlow, HeatKernel, Spectrum, heatflow, kernel, spectrum
+from o3dheat.typing import MeshLike
+
+from .filters import (
+    OneOf,
+    attribute_columns,
+    check_column,
+    check_parameters,
+    check_step,
+    check_writable,
+    need_attribute,
+    one_column,
+    param,
+    shared_spectrum,
+)
+
+__all__ = ["Site", "checked", "OPERATORS", "MAX_SCALES", "Variant", "Grid", "HksForm", "Normalization", "Operators",
+           "Method", "eigenpairs", "scale_count", "time_list", "tolerance", "persistence", "fraction", "kernel_of",
+           "flow_of", "smoother", "time_count", "times_of", "param", "check_column", "need_attribute"]
 
 log = logging.getLogger("o3dheat")
 
@@ -34,85 +66,85 @@ Normalization = Literal[kernel.NORMALIZATIONS]
 Operators = Literal[OPERATORS]
 Method = Literal[heatflow.METHODS]
 
-#: the bounds of the parameters several filters share (:func:`o3dheat.pipelines.filters.param`), declared once:
+#: the bounds of the parameters several filters share (:func:`param`), declared once:
 #: ``k: int = eigenpairs()`` ...
 MAX_SCALES = 100_000  # as o3dheat.spectral.kernel's scales
 
 
-def eigenpairs(default=100):
+def eigenpairs(default: int = 100) -> typing.Any:
     """``k``: eigenpairs, at least 1 (more than the mesh has are capped, with a warning).
 
     Examples
     --------
-    >>> from o3dheat_filters._common import eigenpairs
+    >>> from o3dheat.pipelines.site import eigenpairs
     >>> eigenpairs().metadata["o3dheat.limits"].ge
     1
     """
     return param(default, ge=1)
 
 
-def scale_count(default=10):
+def scale_count(default: int = 10) -> typing.Any:
     """``scales``: how many times of a grid, 1 to :data:`MAX_SCALES`.
 
     Examples
     --------
-    >>> from o3dheat_filters._common import scale_count
+    >>> from o3dheat.pipelines.site import scale_count
     >>> str(scale_count().metadata["o3dheat.limits"])
     'in [1, 100000]'
     """
     return param(default, ge=1, le=MAX_SCALES)
 
 
-def time_list():
+def time_list() -> typing.Any:
     """``times``: None (the default grid) or at least one time, each >= 0 (finite: a float).
 
     Examples
     --------
-    >>> from o3dheat_filters._common import time_list
+    >>> from o3dheat.pipelines.site import time_list
     >>> str(time_list().metadata["o3dheat.limits"])
     '>= 0, at least 1 value'
     """
     return param(None, ge=0, min_len=1)
 
 
-def tolerance(default=1e-8):
+def tolerance(default: float = 1e-8) -> typing.Any:
     """``tol``: a relative tolerance in (0, 1) (:func:`o3dheat.checks.tolerance`).
 
     Examples
     --------
-    >>> from o3dheat_filters._common import tolerance
+    >>> from o3dheat.pipelines.site import tolerance
     >>> str(tolerance().metadata["o3dheat.limits"])
     'in (0, 1)'
     """
     return param(default, gt=0, lt=1)
 
 
-def persistence():
+def persistence() -> typing.Any:
     """``delta``: a persistence threshold in the field's units, >= 0 (None: not given).
 
     Examples
     --------
-    >>> from o3dheat_filters._common import persistence
+    >>> from o3dheat.pipelines.site import persistence
     >>> str(persistence().metadata["o3dheat.limits"])
     '>= 0'
     """
     return param(None, ge=0)
 
 
-def fraction():
+def fraction() -> typing.Any:
     """``keep_fraction``: a fraction in [0, 1] (None: not given), as
     :func:`o3dheat.simplify_critical_points` takes it.
 
     Examples
     --------
-    >>> from o3dheat_filters._common import fraction
+    >>> from o3dheat.pipelines.site import fraction
     >>> str(fraction().metadata["o3dheat.limits"])
     'in [0, 1]'
     """
     return param(None, ge=0, le=1)
 
 
-def checked(step):
+def checked(step: typing.Any) -> None:
     """At construction (``__post_init__``): every parameter of a built-in filter checked against its
     type and bounds (:func:`o3dheat.pipelines.filters.check_parameters`) and stored converted, so that a
     filter made directly is refused as one made by name, before any work.
@@ -148,20 +180,19 @@ class Site:
     Examples
     --------
     >>> import open3d as o3d
-    >>> from o3dheat_filters._common import Site
+    >>> from o3dheat.pipelines.site import Site
     >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
     >>> site.n, site.is_mesh
     (114, True)
     """
 
-    def __init__(self, geometry, operators="reconstruct", step=None):
-        import open3d as o3d
-
+    def __init__(self, geometry: MeshLike | o3d.t.geometry.PointCloud | o3d.geometry.PointCloud,
+                 operators: str = "reconstruct", step: typing.Any = None):
         self.o3d = o3d
         if operators not in OPERATORS:
             raise MeshError(f"unknown operators {operators!r}: use one of {OPERATORS}")
         self.operators = operators
-        geometry = mesh_of(geometry)  # a Repaired, a Resampled, any mesh-like: the mesh it holds
+        geometry = meshes.mesh_of(geometry)  # a Repaired, a Resampled, any mesh-like: the mesh it holds
         if isinstance(geometry, (tuple, list)) and len(geometry) == 2:  # (V, F) arrays
             V, F = as_arrays(geometry)
             geometry = o3d.t.geometry.TriangleMesh()
@@ -187,40 +218,36 @@ class Site:
             raise MeshError("a filter takes an Open3D TriangleMesh or PointCloud, a (V, F) pair or a mesh-like "
                             f"(an object with a .mesh, e.g. a Repaired or a Resampled), got {type(geometry).__name__}")
         if step is not None:
-            from o3dheat.pipelines.filters import attribute_columns, check_step
-
             check_step(step, attribute_columns(self.out))
         self.P = self.attrs.positions.numpy().astype(np.float64)
         self.n = len(self.P)
         self._surface = None
 
     # ------------------------------------------------------------------------ attributes
-    def names(self):
+    def names(self) -> list[str]:
         """The vertex attributes' names.
 
         Examples
         --------
         >>> import open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)).names()
         ['positions']
         """
         return [k for k in self.attrs]
 
-    def attribute(self, name, column=None):
+    def attribute(self, name: str, column: int | None = None) -> np.ndarray:
         """A vertex attribute as float64 (n,) or (n, c) (trailing axes flattened row-major);
         ``column`` picks one column (:func:`o3dheat.pipelines.filters.one_column`).
 
         Examples
         --------
         >>> import numpy as np, open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
         >>> site.attribute("positions").shape, site.attribute("positions", column=2).shape
         ((114, 3), (114,))
         """
-        from o3dheat.pipelines.filters import need_attribute, one_column
-
         need_attribute(dict.fromkeys(self.names()), name)
         a = self.attrs[name].numpy()
         if len(a) != self.n:
@@ -232,30 +259,28 @@ class Site:
             raise MeshError(f"attribute {name!r} has NaN or infinite values")
         return a
 
-    def scalar(self, name, column=None):
+    def scalar(self, name: str, column: int | None = None) -> np.ndarray:
         """One column of an attribute, (n,), by the filters' rule (:func:`o3dheat.pipelines.filters.one_column`):
         a multi-column attribute without ``column`` is refused, listing its columns.
 
         Examples
         --------
         >>> import numpy as np, open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
         >>> site.scalar("positions", column=-1).shape
         (114,)
         """
-        from o3dheat.pipelines.filters import one_column
-
         a = self.attribute(name, column)
         return a if column is not None else one_column(a, name)
 
-    def scalar_on_surface(self, name, column=None):
+    def scalar_on_surface(self, name: str, column: int | None = None) -> tuple:
         """(f on the input vertices, V, F of the surface, f on the surface vertices).
 
         Examples
         --------
         >>> import numpy as np, open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
         >>> f, V, F, g = site.scalar_on_surface("positions", column=2)
         >>> V.shape, F.shape, bool(np.array_equal(f, g))    # a mesh is its own surface
@@ -265,13 +290,13 @@ class Site:
         V, F = self.surface()
         return f, V, F, self.to_surface(f)
 
-    def set(self, name, values):
+    def set(self, name: str, values: np.ndarray) -> None:
         """Write a vertex attribute on the copy (one row per input vertex; never "positions").
 
         Examples
         --------
         >>> import numpy as np, open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
         >>> site.set("f", np.zeros(site.n))
         >>> sorted(site.names())
@@ -280,18 +305,16 @@ class Site:
         values = np.ascontiguousarray(values)
         if len(values) != self.n:  # pragma: no cover - a filter bug
             raise AssertionError(f"{name}: {len(values)} rows for {self.n} vertices")
-        from o3dheat.pipelines.filters import attribute_columns, check_writable
-
         check_writable(name, values.shape[1:], attribute_columns(self.out))
         self.attrs[name] = self.o3d.core.Tensor(values)
 
-    def result(self):
+    def result(self) -> typing.Any:
         """The copy with the attributes written: what the filter returns (the input is unchanged).
 
         Examples
         --------
         >>> import numpy as np, open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)
         >>> site = Site(mesh)
         >>> site.set("f", np.zeros(site.n))
@@ -301,13 +324,13 @@ class Site:
         return self.out
 
     # --------------------------------------------------------------- surface and spectrum
-    def surface(self):
+    def surface(self) -> tuple[np.ndarray, np.ndarray]:
         """(V, F) the operators are built on: the mesh, or the reconstruction of the points.
 
         Examples
         --------
         >>> import numpy as np, open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
         >>> [a.shape for a in site.surface()]
         [(114, 3), (224, 3)]
@@ -323,45 +346,41 @@ class Site:
                 self._surface = _reconstruction(self)
         return self._surface
 
-    def to_surface(self, f):
+    def to_surface(self, f: np.ndarray) -> np.ndarray:
         """Per-input-vertex values -> per-surface-vertex values.
 
         Examples
         --------
         >>> import numpy as np, open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
         >>> site.to_surface(np.ones(site.n)).shape    # a mesh: the same values
         (114,)
         """
         if self.is_mesh or self.operators == "robust":
             return f
-        from o3dheat.geometry.sampling import nearest
+        return sampling.nearest(f, self.P, self.surface()[0])
 
-        return nearest(f, self.P, self.surface()[0])
-
-    def from_surface(self, g):
+    def from_surface(self, g: np.ndarray) -> np.ndarray:
         """Per-surface-vertex values -> per-input-vertex values.
 
         Examples
         --------
         >>> import numpy as np, open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
         >>> site.from_surface(np.ones((site.n, 2))).shape
         (114, 2)
         """
         if self.is_mesh or self.operators == "robust":
             return g
-        from o3dheat.geometry.sampling import transfer
-
         V, F = self.surface()
         g = np.asarray(g)
         flat = g.reshape(len(V), -1)
-        out = transfer(flat, (V, F), self.P)
+        out = sampling.transfer(flat, (V, F), self.P)
         return out.reshape((self.n,) + g.shape[1:])
 
-    def spectrum(self, k=100, mass="consistent", cache=None):
+    def spectrum(self, k: int = 100, mass: str = "consistent", cache: typing.Any = None) -> Spectrum:
         """The spectrum of the surface with the mass ``mass`` (:data:`o3dheat.spectral.fem.MASS_KINDS`),
         shared by the filters (:func:`o3dheat.pipelines.filters.shared_spectrum`); robust-laplacian's for
         point clouds with ``operators="robust"``. A ``k`` larger than the surface allows (its
@@ -371,14 +390,12 @@ class Site:
         Examples
         --------
         >>> import numpy as np, open3d as o3d
-        >>> from o3dheat_filters._common import Site
+        >>> from o3dheat.pipelines.site import Site
         >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
         >>> s = site.spectrum(k=5, mass="lumped")
         >>> s.k, s.mass_kind
         (5, 'lumped')
         """
-        from o3dheat.pipelines.filters import shared_spectrum
-
         if not self.is_mesh and self.operators == "robust":
             s = _robust_spectrum(self.P, k)
         else:
@@ -394,21 +411,16 @@ def _reconstruction(site):
     """The surface through a site's points, made once per point set and normals and shared by the
     steps of a chain (each step reads its own copy of the cloud: reconstructing it again cost a
     Poisson solve per step, and its repairs were reported at every step)."""
-    import hashlib
-
-    from o3dheat.geometry.sampling import reconstruct
-    from o3dheat.spectral.spectrum import memoized
-
-    check_points(site.P, planar=False)
+    meshes.check_points(site.P, planar=False)
     h = hashlib.sha256(np.ascontiguousarray(site.P).tobytes())
     if "normals" in site.attrs:
         h.update(np.ascontiguousarray(site.attrs["normals"].numpy(), dtype=np.float64).tobytes())
-    return memoized(("reconstruct", h.hexdigest()), lambda: reconstruct(site.out))
+    return spectrum.memoized(("reconstruct", h.hexdigest()), lambda: sampling.reconstruct(site.out))
 
 
 def _robust_operators(P):
-    check_points(P, planar=True, min_points=31, what="the point cloud (robust operators: 30 neighbours each)")
-    try:
+    meshes.check_points(P, planar=True, min_points=31, what="the point cloud (robust operators: 30 neighbours each)")
+    try:  # an optional dependency (pip install robust-laplacian): imported when a filter asks for it
         import robust_laplacian
     except ImportError:
         raise MeshError("operators='robust' needs robust-laplacian: pip install robust-laplacian "
@@ -417,19 +429,15 @@ def _robust_operators(P):
 
 
 def _robust_spectrum(P, k):
-    import hashlib
-
-    from o3dheat.spectral.spectrum import eigensolve_operators, memoized
-
     def compute():
         L, M = _robust_operators(P)
-        return eigensolve_operators(L, M, k=min(k, len(P) - 2))
+        return spectrum.eigensolve_operators(L, M, k=min(k, len(P) - 2))
 
     key = ("robust", hashlib.sha256(np.ascontiguousarray(P, dtype=np.float64).tobytes()).hexdigest(), k)
-    return memoized(key, compute)
+    return spectrum.memoized(key, compute)
 
 
-def kernel_of(site, k, variant="weighted", normalize=None):
+def kernel_of(site: Site, k: int, variant: str = "weighted", normalize: str | None = None) -> HeatKernel:
     """The heat kernel ``variant`` (:data:`o3dheat.spectral.kernel.VARIANTS`) on the site's own spectrum
     of that variant's mass; point clouds with ``operators="robust"`` have robust-laplacian's
     mass only ("weighted").
@@ -437,13 +445,11 @@ def kernel_of(site, k, variant="weighted", normalize=None):
     Examples
     --------
     >>> import open3d as o3d
-    >>> from o3dheat_filters._common import Site, kernel_of
+    >>> from o3dheat.pipelines.site import Site, kernel_of
     >>> K = kernel_of(Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)), 5, "voronoi")
     >>> K.variant, K.spectrum.mass_kind
     ('voronoi', 'voronoi')
     """
-    from o3dheat import HeatKernel
-
     if not site.is_mesh and site.operators == "robust" and variant != "weighted":
         raise MeshError(f"operators='robust' comes with robust-laplacian's own mass: use variant='weighted', "
                         f"or operators='reconstruct' for the {variant!r} kernel")
@@ -451,7 +457,7 @@ def kernel_of(site, k, variant="weighted", normalize=None):
     return HeatKernel(site.spectrum(k=k, mass=mass), variant=variant, normalize=normalize)
 
 
-def flow_of(site, variant="weighted", normalize=None, tol=1e-8):
+def flow_of(site: Site, variant: str = "weighted", normalize: str | None = None, tol: float = 1e-8) -> HeatFlow:
     """The full heat kernel ``variant`` (:class:`o3dheat.HeatFlow`) of the site's surface (its
     operators and factors cached for the chain), to ``tol``; robust-laplacian's operators for point
     clouds with ``operators="robust"`` ("weighted" only).
@@ -459,13 +465,11 @@ def flow_of(site, variant="weighted", normalize=None, tol=1e-8):
     Examples
     --------
     >>> import open3d as o3d
-    >>> from o3dheat_filters._common import Site, flow_of
+    >>> from o3dheat.pipelines.site import Site, flow_of
     >>> flow = flow_of(Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)), "lumped")
     >>> flow.variant, flow.n
     ('lumped', 114)
     """
-    from o3dheat import HeatFlow
-
     kernel.mass_of(variant)  # an unknown variant: MeshError listing them
     if not site.is_mesh and site.operators == "robust":
         if variant != "weighted":
@@ -476,7 +480,8 @@ def flow_of(site, variant="weighted", normalize=None, tol=1e-8):
     return HeatFlow(site.surface(), variant=variant, normalize=normalize, tol=tol)
 
 
-def smoother(site, method, k, variant="weighted", normalize=None, tol=1e-8):
+def smoother(site: Site, method: str, k: int, variant: str = "weighted", normalize: str | None = None,
+             tol: float = 1e-8) -> HeatKernel | HeatFlow:
     """What computes ``Φ_t`` for a filter: the spectral kernel (:func:`kernel_of`) or the full one
     (:func:`flow_of`, to ``tol``), by ``method`` (:data:`o3dheat.spectral.heatflow.METHODS`); either has
     ``smooth(f, t)``.
@@ -484,7 +489,7 @@ def smoother(site, method, k, variant="weighted", normalize=None, tol=1e-8):
     Examples
     --------
     >>> import open3d as o3d
-    >>> from o3dheat_filters._common import Site, smoother
+    >>> from o3dheat.pipelines.site import Site, smoother
     >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
     >>> type(smoother(site, "spectral", 5)).__name__, type(smoother(site, "exact", 5)).__name__
     ('HeatKernel', 'HeatFlow')
@@ -494,25 +499,25 @@ def smoother(site, method, k, variant="weighted", normalize=None, tol=1e-8):
     return kernel_of(site, k, variant, normalize) if method == "spectral" else flow_of(site, variant, normalize, tol)
 
 
-def time_count(times, scales):
+def time_count(times: typing.Sequence[float] | None, scales: int) -> int:
     """How many times :func:`times_of` gives: the columns of a filter's multi-scale output.
 
     Examples
     --------
-    >>> from o3dheat_filters._common import time_count
+    >>> from o3dheat.pipelines.site import time_count
     >>> time_count(None, 10), time_count((0.1, 0.2), 10)
     (10, 2)
     """
     return len(times) if times else scales
 
 
-def times_of(kernel, times, scales, grid="paper"):
+def times_of(kernel: HeatKernel, times: typing.Sequence[float] | None, scales: int, grid: str = "paper") -> np.ndarray:
     """Explicit times, or ``scales`` times of the kernel's ``grid``.
 
     Examples
     --------
     >>> import open3d as o3d
-    >>> from o3dheat_filters._common import Site, kernel_of, times_of
+    >>> from o3dheat.pipelines.site import Site, kernel_of, times_of
     >>> K = kernel_of(Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)), 5)
     >>> times_of(K, (0.1, 0.2), 3).tolist(), times_of(K, None, 3).shape
     ([0.1, 0.2], (3,))

@@ -1,0 +1,35 @@
+"""The colorize filter."""
+
+import numpy as np
+import open3d as o3d
+import pytest
+from conftest import icosphere
+
+import o3dheat
+import o3dheat.pipelines.filters as flt
+
+
+def tmesh(V, F, **attrs):
+    m = o3d.t.geometry.TriangleMesh()
+    m.vertex.positions = o3d.core.Tensor(np.asarray(V, np.float64))
+    m.triangle.indices = o3d.core.Tensor(np.asarray(F, np.int64))
+    for k, v in attrs.items():
+        m.vertex[k] = o3d.core.Tensor(np.ascontiguousarray(v))
+    return m
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    V, F = icosphere(3)
+    return tmesh(V, F, height=V[:, 2].copy())
+
+
+def test_colorize(sphere):
+    out = flt.apply(sphere, "colorize", attribute="height", colormap="viridis", range=[-1.0, 1.0])
+    c = out.vertex["colors"].numpy()
+    assert c.dtype == np.float32 and c.shape == (len(c), 3) and 0 <= c.min() and c.max() <= 1
+    assert np.unique(c, axis=0).shape[0] > 50  # a ramp, not one colour
+    with pytest.raises(o3dheat.MeshError, match="colormap"):
+        flt.apply(sphere, "colorize", colormap="nope")
+    with pytest.raises(o3dheat.MeshError, match="range"):
+        flt.get("colorize", range=[1.0, 0.0])

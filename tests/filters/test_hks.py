@@ -1,0 +1,42 @@
+"""The hks filter (and heat_smooth), against the kernel."""
+
+import numpy as np
+import open3d as o3d
+import pytest
+from conftest import icosphere
+
+import o3dheat
+import o3dheat.pipelines.filters as flt
+
+
+def tmesh(V, F, **attrs):
+    m = o3d.t.geometry.TriangleMesh()
+    m.vertex.positions = o3d.core.Tensor(np.asarray(V, np.float64))
+    m.triangle.indices = o3d.core.Tensor(np.asarray(F, np.int64))
+    for k, v in attrs.items():
+        m.vertex[k] = o3d.core.Tensor(np.ascontiguousarray(v))
+    return m
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    V, F = icosphere(3)
+    return tmesh(V, F, height=V[:, 2].copy())
+
+
+def test_heat_smooth_and_hks_match_the_kernel(sphere):
+    V, F = (sphere.vertex.positions.numpy(), sphere.triangle.indices.numpy())
+    K = o3dheat.HeatKernel(o3dheat.eigensolve((V, F), k=30))
+    f = V[:, 2]
+    out = flt.apply(sphere, "heat_smooth", attribute="height", k=30)
+    assert np.allclose(out.vertex["height_smooth"].numpy(), K.smooth(f, K.scales()))
+    one = flt.apply(sphere, "heat_smooth", attribute="height", k=30, times=[0.01], output="s")
+    assert np.allclose(one.vertex["s"].numpy(), K.smooth(f, 0.01))
+    col = flt.apply(out, "heat_smooth", attribute="height_smooth", column=2, k=30, times=[0.01, 0.02])
+    assert np.allclose(col.vertex["height_smooth_smooth"].numpy(), K.smooth(K.smooth(f, K.scales())[:, 2], [0.01, 0.02]))
+    with pytest.raises(o3dheat.MeshError, match="columns"):
+        flt.apply(out, "heat_smooth", attribute="height_smooth", k=30)
+    with pytest.raises(o3dheat.MeshError, match="column 12 does not exist"):
+        flt.apply(out, "heat_smooth", attribute="height_smooth", column=12, k=30)
+    h = flt.apply(sphere, "hks", k=30, form="paper").vertex["hks"].numpy()
+    assert np.allclose(h, K.hks(K.scales(), form="paper"))
