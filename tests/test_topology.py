@@ -738,12 +738,12 @@ def test_compiled_loops_are_cached():
     so that only the first call of an installation compiles."""
     from pathlib import Path
 
-    from o3dheat.topology.critical import _kernel
+    from o3dheat.topology._loops import LOOPS, kernel
 
     V, F = icosphere(1)
     o3dheat.persistence((V, F), V[:, 0])
-    for name in ("_k_edges", "_k_fans", "_k_classify", "_k_arcs", "_k_sweeps"):
-        k = _kernel(name)
+    for name in LOOPS:
+        k = kernel(name)
         assert k.signatures, name
         assert Path(k._cache._cache_file._index_path).is_file(), name
 
@@ -776,7 +776,7 @@ def test_compiled_in_this_process_counts_cache_misses(monkeypatch):
     def fake(misses):
         return types.SimpleNamespace(stats=types.SimpleNamespace(cache_misses={("sig",): misses}))
 
-    mod = "o3dheat.topology.critical"
+    mod = "o3dheat.topology._loops"
     monkeypatch.setattr(J, "_COMPILED", {(mod, "a"): fake(0), (mod, "b"): fake(0), ("other", "c"): fake(1)})
     assert T.compiled_in_this_process() is False  # another module's compilation is not this one's
     monkeypatch.setattr(J, "_COMPILED", {(mod, "a"): fake(0), (mod, "b"): fake(1)})
@@ -789,9 +789,10 @@ def test_warm_up_loads_every_compiled_loop():
     import sys
 
     code = ("import o3dheat.topology.critical as T, o3dheat._jit as J; T.warm_up(); "
-            "print(sorted(name for mod, name in J._COMPILED if mod == 'o3dheat.topology.critical'))")
+            "print(sorted(name for mod, name in J._COMPILED if mod == 'o3dheat.topology._loops'))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip().splitlines()[-1] == str(sorted(["_k_arcs", "_k_classify", "_k_edges", "_k_fans", "_k_sweeps"]))
+    assert out.strip().splitlines()[-1] == str(sorted(["arcs", "classify", "fans", "number_edges", "sorted_half_edges",
+                                                       "sweeps"]))
 
 
 def test_critical_points_have_a_length_the_number_of_critical_vertices():

@@ -24,7 +24,8 @@ from o3dheat import checks
 from o3dheat.errors import MeshError
 from o3dheat.spectral import HeatFlow, HeatKernel
 
-from .critical import Surface, critical_points
+from .critical import critical_points
+from .surface import Surface
 from .tracking import Tracks, track_critical_points
 
 __all__ = ["project", "feature_driven", "scale_space", "ScaleSpace"]

@@ -46,7 +46,9 @@ from o3dheat import checks
 from o3dheat._jit import compiled
 from o3dheat.errors import MeshError
 
-from .critical import Surface, critical_points, persistence
+from .critical import critical_points
+from .persistence import persistence
+from .surface import Surface
 
 __all__ = ["Tracks", "track_critical_points", "KINDS"]
 
