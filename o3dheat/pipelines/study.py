@@ -1,8 +1,14 @@
 """Robustness studies: do descriptors survive when the same shape is sampled differently? (P17)
 
+Entry points: :func:`robustness_study` (meshes and resamplings -> a table of errors) and
+:func:`load_config` (its arguments from a TOML file); the measures themselves are computed by
+``o3dheat.pipelines._descriptors``, on Dask workers or in-process (:mod:`o3dheat.pipelines.cluster`).
+
+Notes
+-----
 A study takes meshes and resamplings, computes the same descriptors with several kernels on the
 reference mesh and on every resampling, brings the resampled descriptors back to the reference
-vertices (:func:`o3dheat.geometry.sampling.transfer`) and measures how far they moved:
+vertices (:func:`o3dheat.geometry.interpolation.transfer`) and measures how far they moved:
 
 * ``rel_l2 = ‖d − d_ref‖_A / ‖d_ref‖_A``, with the lumped-mass (area) norm of the reference;
 * ``rel_linf = ‖d − d_ref‖∞ / ‖d_ref‖∞``.
@@ -41,198 +47,34 @@ parallelism), so a sequential and a distributed run give the same table, bit for
 
 from __future__ import annotations
 
+import csv
+import hashlib
+import io
 import json
 import logging
 import re
-import traceback
+import typing
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from distributed import as_completed
 
 from o3dheat.errors import MeshError
+from o3dheat.geometry import KINDS, decimate, prepare
+from o3dheat.io import atomic_write, atomic_write_text, read_mesh, read_toml, sample_mesh
 from o3dheat.spectral import heatflow, kernel
+from o3dheat.typing import MeshLike, PathLike
 
+from ._descriptors import COLUMNS, DESCRIPTORS, failed, reference, task
 from .cluster import progress_bar, session, task_error
 
 __all__ = ["robustness_study", "DESCRIPTORS", "COLUMNS", "load_config"]
 
 log = logging.getLogger("o3dheat")
 
-#: what a study measures: one HKS per form of :data:`o3dheat.spectral.kernel.HKS_FORMS`, then the others
-DESCRIPTORS = tuple(f"hks_{form}" for form in kernel.HKS_FORMS) + (
-    "smooth_height", "smooth_curvature", "eigenvalues", "critical_points", "track_lifetime")
-COLUMNS = ["mesh", "resampling", "kind", "kernel", "descriptor", "scale", "t", "rel_l2", "rel_linf",
-           "vertices", "error"]
-
-
-# ------------------------------------------------------------------------------- computation
-def _descriptors(V, F, kernels, descriptors, k, times, axis, grid="paper", scales=10, method="spectral"):
-    """({(kernel, descriptor): array} on one sampling, {kernel: times}); fields are (n, T).
-
-    Each kernel is built from its own spectrum (:func:`o3dheat.spectral.kernel.heat_kernel`). ``times``
-    maps each kernel to its times; None (the reference sampling) takes each kernel's own scales
-    (``grid``, ``scales``). With ``method="exact"`` the smoothed fields (and their critical points)
-    come from the full kernel (:class:`o3dheat.HeatFlow`); a sampling then needs no spectrum unless
-    an HKS, the eigenvalues or its own scales are asked for."""
-    from o3dheat.spectral import HeatFlow, fem, heat_kernel
-    from o3dheat.topology import Surface, critical_points, track_critical_points
-
-    V, F = _aligned(V), _aligned(F)
-    k = min(k, len(V) - 2)
-    height = _aligned(V[:, axis])
-    curvature = _aligned(fem.mean_curvature(V, F)) if "smooth_curvature" in descriptors else None
-    topo = {"critical_points", "track_lifetime"} & set(descriptors)
-    surface = Surface.from_faces(len(V), F, V) if topo else None
-    out, used = {}, {}
-    smooth_only = {"smooth_height", "smooth_curvature", "critical_points", "track_lifetime"}
-    for kern in kernels:
-        spectral = method == "spectral" or times is None or not set(descriptors) <= smooth_only
-        K = heat_kernel((V, F), k=k, variant=kern) if spectral else None
-        t = used[kern] = K.scales(scales, grid=grid) if times is None else times[kern]
-        S = K if method == "spectral" or not smooth_only & set(descriptors) else HeatFlow((V, F), variant=kern,
-                                                                                        cache=False)
-        # the smoothed height, once per kernel: a descriptor itself and the field of the topological ones
-        needs_height = {"smooth_height", "critical_points", "track_lifetime"} & set(descriptors)
-        H = S.smooth(height, t) if needs_height else None
-        for d in descriptors:
-            if d.startswith("hks_"):
-                out[kern, d] = K.hks(t, form=d[len("hks_"):])
-            elif d == "smooth_height":
-                out[kern, d] = H
-            elif d == "smooth_curvature":
-                out[kern, d] = S.smooth(curvature, t)
-            elif d == "eigenvalues":
-                out[kern, d] = K.spectrum.eigenvalues.copy()
-            elif d == "critical_points":
-                out[kern, d] = np.array([sum(critical_points(surface, H[:, i]).counts)
-                                         for i in range(len(t))], dtype=np.float64)
-            elif d == "track_lifetime":
-                out[kern, d] = track_critical_points(surface, H, t)
-    return out, used
-
-
-def _lifetime_errors(tracks, ref, extent, top=10):
-    """(root mean square, largest) per scale of the "track_lifetime" errors (module docstring) of
-    the tracks of a resampling against the reference's."""
-    t = ref.times
-    radius = 0.05 * float(np.linalg.norm(extent))
-    l2, inf = np.zeros(len(t)), np.zeros(len(t))
-    for j in range(len(t)):
-        span = np.log(t[-1] / t[j])
-        alive = np.flatnonzero((ref.vertex[:, j] >= 0) & (ref.kind != "saddle"))
-        alive = alive[np.lexsort((ref.vertex[alive, j], -ref.persistence[alive, j], -ref.last[alive]))][:top]
-        mine = np.flatnonzero(tracks.vertex[:, j] >= 0)
-        err = []
-        for a in alive:
-            same = mine[tracks.kind[mine] == ref.kind[a]]
-            d = np.linalg.norm(tracks.positions_of[tracks.vertex[same, j]] - ref.positions_of[ref.vertex[a, j]], axis=1)
-            if not len(d) or d.min() > radius:
-                err.append(1.0)
-            elif span > 0:
-                err.append(abs(np.log(t[tracks.last[same[np.argmin(d)]]] / t[ref.last[a]])) / span)
-            else:
-                err.append(0.0)
-        if err:
-            l2[j], inf[j] = np.sqrt(np.mean(np.square(err))), np.max(err)
-    return l2, inf
-
-
-def _aligned(a):
-    """A C-contiguous copy on a 64-byte boundary: BLAS kernels pick their summation order by the
-    address, and arrays that travelled to a Dask worker land anywhere; aligned inputs give
-    bit-identical results in every process."""
-    a = np.asarray(a)
-    buf = np.empty(a.nbytes + 64, np.uint8)
-    off = (-buf.ctypes.data) % 64
-    out = buf[off:off + a.nbytes].view(a.dtype).reshape(a.shape)
-    out[...] = a
-    return out
-
-
-def _reference(V, F, cfg):
-    """Reference descriptors, the times, the longest axis and the vertex areas of one mesh; or
-    ``{"error": message}``: a failure is a result (each task of the mesh reports it as its row),
-    not an exception that Dask would log with its traceback in every worker."""
-    from threadpoolctl import threadpool_limits
-
-    from o3dheat.parallel import threads
-    from o3dheat.spectral import mass_matrix
-
-    try:
-        with threadpool_limits(1), threads(1):
-            axis = int(np.argmax(np.ptp(V, axis=0)))
-            desc, times = _descriptors(V, F, cfg["kernels"], cfg["descriptors"], cfg["k"], None, axis,
-                                       cfg["grid"], cfg["scales"], cfg.get("method", "spectral"))
-            areas = np.asarray(mass_matrix(V, F, "lumped").diagonal())
-    except Exception as e:
-        log.debug("the reference failed: %s", traceback.format_exc())
-        return {"error": f"the reference sampling failed: {_one_line(e)}"}
-    return {"times": times, "axis": axis, "areas": areas, "descriptors": desc, "V": V, "F": F}
-
-
-def _one_line(e):
-    return f"{type(e).__name__}: {' '.join(str(e).split()) or repr(e)}"
-
-
-def _failed(mesh_name, res_name, kind, error):
-    """The one row of a failed task."""
-    return [[mesh_name, res_name, kind, "", "", 0, float("nan"), float("nan"), float("nan"), 0, error]]
-
-
-def _rel(d, r, a):
-    """(mass-weighted relative L2, relative L∞) of d against r, column by column."""
-    diff = d - r
-    if diff.ndim == 1:
-        diff, r = diff[:, None], r[:, None]
-    num = np.sqrt(np.einsum("i,it->t", a, diff**2))
-    den = np.sqrt(np.einsum("i,it->t", a, r**2))
-    l2 = num / np.where(den > 0, den, 1.0)
-    inf = np.abs(diff).max(axis=0) / np.where(np.abs(r).max(axis=0) > 0, np.abs(r).max(axis=0), 1.0)
-    return l2, inf
-
-
-def _task(mesh_name, res_name, spec, ref, cfg):
-    """Rows of one (mesh, resampling) unit; errors become one row with the message."""
-    from threadpoolctl import threadpool_limits
-
-    from o3dheat.geometry import resample, transfer
-    from o3dheat.parallel import threads
-
-    kind = spec["kind"]
-    if "error" in ref:  # the reference failed: so does every task of its mesh
-        return _failed(mesh_name, res_name, kind, ref["error"])
-    try:
-        with threadpool_limits(1), threads(1):
-            params = {key: v for key, v in spec.items() if key not in ("kind", "name")}
-            r = resample((ref["V"], ref["F"]), kind, **params)
-            desc, _ = _descriptors(r.V, r.F, cfg["kernels"], cfg["descriptors"], cfg["k"], ref["times"], ref["axis"],
-                                   method=cfg.get("method", "spectral"))
-            rows = []
-            for (kern, d), value in desc.items():
-                base = ref["descriptors"][kern, d]
-                if d == "eigenvalues":
-                    m = min(len(value), len(base))
-                    a, b = value[1:m], base[1:m]  # λ_1 = 0
-                    l2 = [np.linalg.norm(a - b) / np.linalg.norm(b)]
-                    inf = [np.abs(a - b).max() / np.abs(b).max()]
-                    scales, ts = [0], [float("nan")]
-                elif d == "critical_points":
-                    l2 = inf = np.abs(value - base) / np.maximum(base, 1.0)
-                    scales, ts = range(1, len(ref["times"][kern]) + 1), ref["times"][kern]
-                elif d == "track_lifetime":
-                    l2, inf = _lifetime_errors(value, base, np.ptp(ref["V"], axis=0))
-                    scales, ts = range(1, len(ref["times"][kern]) + 1), ref["times"][kern]
-                else:
-                    back = transfer(value, r, ref["V"])
-                    l2, inf = _rel(back, base, ref["areas"])
-                    scales, ts = range(1, len(ref["times"][kern]) + 1), ref["times"][kern]
-                for s, t, x, y in zip(scales, ts, l2, inf, strict=True):
-                    rows.append([mesh_name, res_name, kind, kern, d, int(s), float(t), float(x), float(y),
-                                 len(r.V), ""])
-            return rows
-    except Exception as e:  # a failing task is a result, not the end of the study
-        log.debug("task %s/%s failed: %s", mesh_name, res_name, traceback.format_exc())
-        return _failed(mesh_name, res_name, kind, _one_line(e))
+if typing.TYPE_CHECKING:  # annotations only: pandas is imported where the table is made
+    import pandas as pd
 
 
 # ------------------------------------------------------------------------------- bookkeeping
@@ -245,12 +87,7 @@ def _task_file(out, mesh_name, res_name):
 
 
 def _write_rows(path, rows):
-    import csv
-    import io as _io
-
-    from o3dheat.io import atomic_write_text
-
-    buf = _io.StringIO()
+    buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(COLUMNS)
     w.writerows([[repr(x) if isinstance(x, float) else x for x in row] for row in rows])
@@ -258,8 +95,6 @@ def _write_rows(path, rows):
 
 
 def _read_rows(path):
-    import csv
-
     with open(path, newline="") as fh:
         rd = csv.reader(fh)
         header = next(rd)
@@ -276,8 +111,6 @@ def _normalise_resamplings(resamplings):
     """[(name, spec)] from a dict name -> spec, a list of specs with a "name", or kind names
     (``["decimate", "remesh"]``: each kind with the defaults of its function in
     :mod:`o3dheat.geometry.sampling`, named after it)."""
-    from o3dheat.geometry import KINDS
-
     if isinstance(resamplings, str):
         resamplings = [resamplings]
     if isinstance(resamplings, dict):
@@ -335,8 +168,10 @@ def _cost(spec, n):
         return float(n)
 
 
-def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS, scales=10, k=100,
-                     out=None, scheduler=None, progress=None, grid="paper", method="spectral"):
+def robustness_study(meshes: dict[str, MeshLike], resamplings: dict | list | str,
+                     kernels: str | Sequence[str] | None = None, descriptors: str | Sequence[str] = DESCRIPTORS,
+                     scales: int = 10, k: int = 100, out: PathLike | None = None, scheduler: object = None,
+                     progress: bool | None = None, grid: str = "paper", method: str = "spectral") -> pd.DataFrame:
     """Run a robustness study (see the module docstring for what is measured).
 
     Parameters
@@ -392,36 +227,7 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
     >>> table[["kernel", "descriptor", "scale"]].values.tolist()
     [['weighted', 'hks_density', 1], ['weighted', 'hks_density', 2], ['weighted', 'hks_density', 3]]
     """
-    import pandas as pd
-
-    from o3dheat.geometry import prepare
-
-    if kernels is None:
-        kernels = list(kernel.VARIANTS)  # read now: a variant defined there is studied too
-    kernels = [kernels] if isinstance(kernels, str) else list(kernels)  # one name is a list of one
-    descriptors = [descriptors] if isinstance(descriptors, str) else list(descriptors)
-    bad = [x for x in kernels if x not in kernel.VARIANTS] + [x for x in descriptors if x not in DESCRIPTORS]
-    if bad:
-        raise MeshError(f"unknown kernels/descriptors {bad}: kernels are {', '.join(kernel.VARIANTS)} "
-                        f"(o3dheat.spectral.kernel.VARIANTS), descriptors {', '.join(DESCRIPTORS)}")
-    if not kernels or not descriptors:
-        raise MeshError("give at least one kernel and one descriptor")
-    if not isinstance(meshes, dict) or not meshes:
-        raise MeshError("meshes must be a non-empty dict name -> mesh")
-    _unique_slugs([str(m) for m in meshes], "mesh")
-    items = _normalise_resamplings(resamplings)
-    for value, name, least in ((scales, "scales", 1), (k, "k", 2)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-            raise MeshError(f"{name} must be an integer >= {least}, got {value!r} (scales must be >= 1 and k >= 2)")
-    if progress is not None and not isinstance(progress, (bool, np.bool_)):
-        raise MeshError(f"progress must be True, False or None, got {progress!r}")
-    if not isinstance(grid, str) or grid not in kernel.GRIDS:
-        raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(kernel.GRIDS)}")
-    if not isinstance(method, str) or method not in heatflow.METHODS:
-        raise MeshError(f"unknown method {method!r}: use one of {', '.join(heatflow.METHODS)}")
-    cfg = {"kernels": kernels, "descriptors": descriptors, "scales": int(scales), "k": int(k), "grid": grid}
-    if method != "spectral":  # (a spectral study's folder stays resumable by earlier versions' record)
-        cfg["method"] = method
+    cfg, items = _settings(meshes, resamplings, kernels, descriptors, scales, k, progress, grid, method)
     arrays = {}
     for name, mesh in meshes.items():
         p = prepare(mesh)
@@ -451,46 +257,90 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
         if bar is not None:
             bar.update(1)
 
-    needed = sorted({m for m, _, _ in todo})
     try:
         with session(scheduler if todo else "sequential", warm_up=bool(todo)) as client:
             if out is not None:  # the scheduler is reached: now the folder (none is left by a bad address)
                 _record(out, state)
             if client is None:
-                refs = {}
-                for mname, rname, spec in todo:
-                    if mname not in refs:
-                        refs[mname] = _reference(*arrays[mname], cfg)
-                    done(mname, rname, _task(mname, rname, spec, refs[mname], cfg))
+                _run_here(todo, arrays, cfg, done)
             else:
-                from distributed import as_completed
-
-                # the longest tasks first (a worker that starts one last would finish alone);
-                # the references before everything (every task of a mesh waits for its own)
-                order = sorted(todo, key=lambda x: -_cost(x[2], len(arrays[x[0]][0])))
-                top = len(order) + 1
-                refs = {m: client.submit(_reference, *arrays[m], cfg, pure=False, priority=top) for m in needed}
-                futures = {client.submit(_task, m, r, s, refs[m], cfg, pure=False, priority=len(order) - i):
-                           (m, r, s) for i, (m, r, s) in enumerate(order)}
-                for fut in as_completed(list(futures)):
-                    m, r, s = futures[fut]
-                    try:
-                        result = fut.result()
-                    except Exception as e:  # the worker died (KilledWorker), was cancelled...
-                        result = _failed(m, r, s["kind"], task_error(e))
-                    done(m, r, result)
+                _run_on(client, todo, arrays, cfg, done)
     finally:
         if bar is not None:
             bar.close()
+    return _table(rows, out)
+
+
+def _settings(meshes, resamplings, kernels, descriptors, scales, k, progress, grid, method):
+    """(the study's configuration, its resamplings as [(name, spec)]) after every check of
+    :func:`robustness_study`'s arguments, in its order."""
+    if kernels is None:
+        kernels = list(kernel.VARIANTS)  # read now: a variant defined there is studied too
+    kernels = [kernels] if isinstance(kernels, str) else list(kernels)  # one name is a list of one
+    descriptors = [descriptors] if isinstance(descriptors, str) else list(descriptors)
+    bad = [x for x in kernels if x not in kernel.VARIANTS] + [x for x in descriptors if x not in DESCRIPTORS]
+    if bad:
+        raise MeshError(f"unknown kernels/descriptors {bad}: kernels are {', '.join(kernel.VARIANTS)} "
+                        f"(o3dheat.spectral.kernel.VARIANTS), descriptors {', '.join(DESCRIPTORS)}")
+    if not kernels or not descriptors:
+        raise MeshError("give at least one kernel and one descriptor")
+    if not isinstance(meshes, dict) or not meshes:
+        raise MeshError("meshes must be a non-empty dict name -> mesh")
+    _unique_slugs([str(m) for m in meshes], "mesh")
+    items = _normalise_resamplings(resamplings)
+    for value, name, least in ((scales, "scales", 1), (k, "k", 2)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+            raise MeshError(f"{name} must be an integer >= {least}, got {value!r} (scales must be >= 1 and k >= 2)")
+    if progress is not None and not isinstance(progress, (bool, np.bool_)):
+        raise MeshError(f"progress must be True, False or None, got {progress!r}")
+    if not isinstance(grid, str) or grid not in kernel.GRIDS:
+        raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(kernel.GRIDS)}")
+    if not isinstance(method, str) or method not in heatflow.METHODS:
+        raise MeshError(f"unknown method {method!r}: use one of {', '.join(heatflow.METHODS)}")
+    cfg = {"kernels": kernels, "descriptors": descriptors, "scales": int(scales), "k": int(k), "grid": grid}
+    if method != "spectral":  # (a spectral study's folder stays resumable by earlier versions' record)
+        cfg["method"] = method
+    return cfg, items
+
+
+def _run_here(todo, arrays, cfg, done):
+    """The tasks in this process, each mesh's reference once, before its first task."""
+    refs = {}
+    for mname, rname, spec in todo:
+        if mname not in refs:
+            refs[mname] = reference(*arrays[mname], cfg)
+        done(mname, rname, task(mname, rname, spec, refs[mname], cfg))
+
+
+def _run_on(client, todo, arrays, cfg, done):
+    """The tasks on a Dask client: the longest first (a worker that starts one last would finish
+    alone), the references before everything (every task of a mesh waits for its own)."""
+    needed = sorted({m for m, _, _ in todo})
+    order = sorted(todo, key=lambda x: -_cost(x[2], len(arrays[x[0]][0])))
+    top = len(order) + 1
+    refs = {m: client.submit(reference, *arrays[m], cfg, pure=False, priority=top) for m in needed}
+    futures = {client.submit(task, m, r, s, refs[m], cfg, pure=False, priority=len(order) - i):
+               (m, r, s) for i, (m, r, s) in enumerate(order)}
+    for fut in as_completed(list(futures)):
+        m, r, s = futures[fut]
+        try:
+            result = fut.result()
+        except Exception as e:  # the worker died (KilledWorker), was cancelled...
+            result = failed(m, r, s["kind"], task_error(e))
+        done(m, r, result)
+
+
+def _table(rows, out):
+    """The study's table, sorted; written to ``out`` (csv, and parquet when pyarrow is installed)."""
+    import pandas as pd  # here, not at the top: pandas costs ~0.4 s, which `import o3dheat` avoids
+
     table = pd.DataFrame(rows, columns=COLUMNS)
     table = table.sort_values(["mesh", "resampling", "kernel", "descriptor", "scale"], kind="stable")
     table = table.reset_index(drop=True)
     if out is not None:
-        from o3dheat.io import atomic_write, atomic_write_text
-
         atomic_write_text(out / "study.csv", table.to_csv(index=False, float_format="%.17g"))
         try:
-            import pyarrow  # noqa: F401
+            import pyarrow  # noqa: F401  (optional: the parquet copy only when it is installed)
 
             atomic_write(out / "study.parquet", lambda fh: table.to_parquet(fh, index=False))
         except ImportError:
@@ -501,8 +351,6 @@ def robustness_study(meshes, resamplings, kernels=None, descriptors=DESCRIPTORS,
 def _check_config(out, cfg, items, arrays):
     """Refuse to resume a study folder made with other settings (its task files would not fit);
     returns the folder's record (``study.json``) to write (:func:`_record`). Writes nothing."""
-    import hashlib
-
     h = hashlib.sha256()
     for name in sorted(arrays):
         V, F = arrays[name]
@@ -525,8 +373,6 @@ def _check_config(out, cfg, items, arrays):
 
 def _record(out, state):
     """The study folder, its ``tasks/`` and its record ``study.json``."""
-    from o3dheat.io import atomic_write_text
-
     try:
         (out / "tasks").mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -534,7 +380,7 @@ def _record(out, state):
     atomic_write_text(out / "study.json", json.dumps(state, indent=1, sort_keys=True))
 
 
-def load_config(path):
+def load_config(path: PathLike) -> dict:
     r"""A study configuration from TOML: ``meshes``, ``[[resampling]]`` tables and settings.
 
     ::
@@ -569,8 +415,6 @@ def load_config(path):
     >>> sorted(kw), kw["kernels"], kw["resamplings"]
     (['kernels', 'meshes', 'resamplings'], ['weighted'], [{'kind': 'jitter'}])
     """
-    from o3dheat.io import read_mesh, read_toml
-
     path = Path(path)
     data = read_toml(path)
     allowed = {"k", "scales", "grid", "method", "kernels", "descriptors", "meshes", "resampling"}
@@ -606,9 +450,6 @@ def load_config(path):
 def _builtin(src):
     """``builtin:NAME[@FACES]``: a sample mesh (:func:`o3dheat.demo.sample_mesh`), optionally
     decimated to FACES faces."""
-    from o3dheat.geometry import decimate
-    from o3dheat.io import sample_mesh
-
     name, _, size = src.partition(":")[2].partition("@")
     mesh = sample_mesh(name)
     if size:

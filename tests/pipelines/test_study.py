@@ -70,8 +70,8 @@ def test_resume_computes_only_missing_tasks(sequential, tmp_path, monkeypatch):
     shutil.copytree(out, tmp_path / "s")
     (tmp_path / "s" / "tasks" / "torus__jit.csv").unlink()  # an interrupted run
     calls = []
-    real = o3dheat.pipelines.study._task
-    monkeypatch.setattr(o3dheat.pipelines.study, "_task", lambda *a: calls.append(a[:2]) or real(*a))
+    real = o3dheat.pipelines.study.task
+    monkeypatch.setattr(o3dheat.pipelines.study, "task", lambda *a: calls.append(a[:2]) or real(*a))
     t = robustness_study(MESHES, RES, out=tmp_path / "s", scheduler="sequential", progress=False, **SMALL)
     assert calls == [("torus", "jit")]
     pd.testing.assert_frame_equal(t, ref, check_exact=True)
@@ -132,7 +132,7 @@ def test_linear_kernel_discrepancy_is_not_the_vertex_ratio(sequential):
 
 
 def test_study_kernels_keep_constants():
-    from o3dheat.pipelines.study import _descriptors
+    from o3dheat.pipelines._descriptors import compute as _descriptors
 
     V, F = icosphere(2)
     V = V * [1.3, 1.0, 0.8]
@@ -213,7 +213,7 @@ def test_dask_starts_the_largest_resamplings_first():
 
 def test_exact_method_smooths_with_the_full_kernel(monkeypatch):
     from o3dheat.geometry import sampling
-    from o3dheat.pipelines.study import _descriptors
+    from o3dheat.pipelines._descriptors import compute as _descriptors
     from o3dheat.spectral import spectrum
 
     V, F = icosphere(2)
@@ -239,14 +239,14 @@ def test_exact_method_smooths_with_the_full_kernel(monkeypatch):
 
 
 FAILING = '''import sys
-import o3dheat.pipelines.study
+import o3dheat.pipelines._descriptors
 
 
 def failing(*args, **kwargs):
     raise o3dheat.SolverError("no spectrum here")
 
 
-o3dheat.pipelines.study._descriptors = failing  # at the top level: in the workers too (they run this script again)
+o3dheat.pipelines._descriptors.compute = failing  # at the top level: in the workers too (they run this script again)
 
 if __name__ == "__main__":
     from o3dheat.cli import main
@@ -328,7 +328,7 @@ def _tracks(last, positions, times=(1.0, 10.0, 100.0)):
 def test_track_lifetime_errors_by_hand():
     """Issue 24: the track_lifetime error on hand-made tracks, times 1, 10, 100. Reference: A lives
     to the end, B dies after scale 0, far from A; resampling: A' dies after scale 1, B' lives on."""
-    from o3dheat.pipelines.study import _lifetime_errors
+    from o3dheat.pipelines._descriptors import lifetime_errors as _lifetime_errors
 
     P = [[0.0, 0, 0], [1.0, 0, 0]]
     ref, res = _tracks([2, 0], P), _tracks([1, 2], P)
