@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.geometry.sampling import nearest
+from o3dheat.geometry import nearest
 from o3dheat.pipelines.site import (
     Operators,
     Site,

@@ -8,7 +8,7 @@ import numpy as np
 
 from o3dheat import topology
 from o3dheat.errors import MeshError
-from o3dheat.geometry.sampling import nearest
+from o3dheat.geometry import nearest
 from o3dheat.pipelines.site import (
     Method,
     Operators,

@@ -7,7 +7,8 @@ import pytest
 
 import o3dheat
 from o3dheat.checks import count, values
-from o3dheat.geometry.sampling import jitter, transfer
+from o3dheat.geometry.interpolation import transfer
+from o3dheat.geometry.sampling import jitter
 
 
 @pytest.fixture(scope="module")

@@ -11,14 +11,13 @@ from __future__ import annotations
 import numpy as np
 
 from o3dheat._jit import compiled
+from o3dheat.errors import MeshError
 
 __all__ = ["double_areas", "corner_geometry", "pattern", "fill", "components", "abs_row_sums", "first_rows"]
 
 
 def _checked(V, F):
     """(V, F) as the loops read them, the face indices checked (compiled loops check no bounds)."""
-    from o3dheat.errors import MeshError
-
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     if F.ndim != 2 or F.shape[1] != 3 or V.ndim != 2 or V.shape[1] != 3:

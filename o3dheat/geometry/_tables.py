@@ -1,15 +1,20 @@
-"""The mesh tables behind :mod:`o3dheat.geometry.mesh` and its users (fem, topology, sampling, plot): unique
-rows, edges, degenerate and zero-area faces, exact copies, welding, corners and fans, non-manifold
-edges and vertices, vertex normals. The package's internal API: plain names, no checks of the
-arguments (the public functions that call them check), imported by the modules downstream of
-:mod:`o3dheat.geometry.mesh` instead of its private names.
+"""The mesh tables behind :mod:`o3dheat.geometry` and its users (fem, topology, sampling, plot):
+unique rows, edges, degenerate and zero-area faces, exact copies, welding, corners and fans,
+non-manifold edges and vertices, vertex normals, and the cleaning every computation applies
+(:func:`clean`). The package's internal API: plain names, no checks of the arguments (the public
+functions that call them check), imported by the modules downstream of :mod:`o3dheat.geometry.mesh`
+instead of its private names.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
+
+from ._loops import double_areas, first_rows
 
 
 def unit_scale(V):
@@ -60,8 +65,6 @@ def degenerate(F):
 
 
 def zero_area(V, F):
-    from ._loops import double_areas
-
     s = unit_scale(V)  # relative test: at unit scale (exact, a power of two)
     V = V / s if s != 1.0 else V
     area = 0.5 * double_areas(V, F)
@@ -74,8 +77,6 @@ def first_copies(P, bits=64):
     float64 values (itself when unique; -0.0 equals 0.0, NaN equals nothing), in one pass over a
     hash table of the coordinates' bits (:func:`o3dheat.geometry._loops.first_rows`; ``bits``
     narrows the hash, for tests). An STL's 6M corners: about 0.5 s."""
-    from ._loops import first_rows
-
     P = np.ascontiguousarray(P, dtype=np.float64) + 0.0  # -0.0 hashes as 0.0
     return first_rows(P.view(np.uint64), P, bits)
 
@@ -83,8 +84,6 @@ def first_copies(P, bits=64):
 def first_faces(F):
     """(m,) bool: True at the first of each set of faces with the same three vertices (in any
     order), in one pass (:func:`o3dheat.geometry._loops.first_rows` on the sorted triples)."""
-    from ._loops import first_rows
-
     S = np.sort(np.asarray(F, dtype=np.int64), axis=1)
     return first_rows(S.view(np.uint64), S) == np.arange(len(S))
 
@@ -157,10 +156,8 @@ def corner_pairs(F, n):
 
 
 def corner_components(m, u, v):
-    from scipy.sparse.csgraph import connected_components as components
-
     g = sp.coo_matrix((np.ones(len(u)), (u, v)), shape=(3 * m, 3 * m))
-    return components(g, directed=False)
+    return connected_components(g, directed=False)
 
 
 def non_manifold_edge_faces(F, n):
@@ -208,3 +205,53 @@ def vertex_normals(V, F):
         np.add.at(N, F[:, i], n)
     length = np.linalg.norm(N, axis=1, keepdims=True)
     return np.divide(N, length, out=np.zeros_like(N), where=length > 0)
+
+
+@dataclass
+class Cleaned:
+    """What :func:`clean` did to a mesh's faces: the one set of rules
+    :func:`o3dheat.geometry.welding.prepare` (every computation) applies and
+    :func:`o3dheat.geometry.mesh.check_mesh` reports."""
+
+    F: np.ndarray  # the faces used, in the caller's vertex numbering (welded copies replaced)
+    rep: np.ndarray | None  # weld map (n,) or None when nothing was welded
+    welded: int = 0  # referenced copies welded into an earlier one
+    split: int = 0  # referenced vertices coincident with another, kept apart (see weld)
+    degenerate: int = 0
+    duplicate: int = 0
+    zero_area: int = 0
+    used: np.ndarray | None = None  # (n,) bool: vertices of the faces used
+    unreferenced: int = 0  # input vertices in no face used (welded copies not counted)
+
+
+def clean(V, F, weld=True):
+    """Weld, then drop degenerate, duplicate and zero-area faces, in this order (the rules of the
+    Notes of :mod:`o3dheat.geometry.welding`), counting each. ``V`` must be finite, ``F`` in range."""
+    n = len(V)
+    rep, split = weld_copies(V, F) if weld else (None, 0)
+    welded = 0 if rep is None else int(np.sum(rep != np.arange(n)))
+    if welded:
+        F = rep[F]
+    else:
+        rep = None
+    c = Cleaned(F, rep, welded, split)
+    bad = degenerate(F)
+    c.degenerate = int(bad.sum())
+    F = F[~bad]
+    if len(F):
+        first = first_faces(F)
+        c.duplicate = int(np.sum(~first))
+        F = F[first]
+    if len(F):
+        zero = zero_area(V, F)
+        c.zero_area = int(zero.sum())
+        F = F[~zero]
+    c.F = F
+    c.used = np.zeros(n, bool)
+    c.used[F.reshape(-1)] = True
+    # after welding, the copies are referenced by no face: they are not "set aside", unless all
+    # the faces of their welded vertex went
+    c.unreferenced = int(n - c.used.sum() - welded)
+    if welded:
+        c.unreferenced += int(np.sum(~c.used[rep] & (rep != np.arange(n))))
+    return c

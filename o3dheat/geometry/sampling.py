@@ -1,4 +1,5 @@
-"""Samplings of a surface and the transfer of functions between them.
+"""Resamplings of a surface, each a :class:`Resampled`: :func:`decimate`, :func:`remesh`,
+:func:`anisotropic`, :func:`jitter`, :func:`subdivide`, by name :func:`resample` (:data:`KINDS`).
 
 Resamplings (each returns a :class:`Resampled`: a new tensor mesh plus what relates it to its
 source; all deterministic, seeded where random):
@@ -11,26 +12,32 @@ source; all deterministic, seeded where random):
 * :func:`jitter`: vertices moved at random in their tangent planes, no face folded;
 * :func:`subdivide`: midpoint (same surface) or Loop subdivision.
 
-Transfers: :func:`transfer` evaluates the PL function of one sampling at the vertices of another
-(barycentric interpolation at the closest surface point), :func:`nearest` takes the nearest
-sample. Point clouds: :func:`reconstruct` builds a mesh through points.
+Moving functions between samplings: :mod:`o3dheat.geometry.interpolation`; point clouds:
+:mod:`o3dheat.geometry.points`.
 """
 
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from o3dheat import checks
 from o3dheat.errors import MeshError
 
+from ._meshlab import area, bound_faces, faces_at, isotropic, meshset
 from ._tables import degenerate, non_manifold_edge_faces, non_manifold_vertex_mask, unique_rows, vertex_normals
-from .mesh import as_arrays, check_points, repair
+from .mesh import as_arrays
+
+if TYPE_CHECKING:  # o3dheat.typing imports Open3D (1.5 s), which arrays never need: for annotations only
+    import open3d as o3d
+
+    from o3dheat.typing import MeshLike
 
 __all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter", "subdivide", "resample", "KINDS",
-           "reconstruct", "transfer", "nearest", "point_arrays", "MIN_FACES", "REMESH_MAX_FACES"]
+           "MIN_FACES", "REMESH_MAX_FACES"]
 
 log = logging.getLogger("o3dheat")
 
@@ -72,7 +79,7 @@ class Resampled:
     vertex_map: np.ndarray | None = None
 
     @property
-    def mesh(self):
+    def mesh(self) -> o3d.t.geometry.TriangleMesh:
         """The sampling as a new ``o3d.t.geometry.TriangleMesh``."""
         import open3d as o3d
 
@@ -82,7 +89,7 @@ class Resampled:
         return m
 
     @property
-    def arrays(self):
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """The sampling as the pair ``(V, F)``: (r, 3) float64 positions, (m, 3) int64 faces."""
         return self.V, self.F
 
@@ -125,7 +132,7 @@ def _clean(V, F, vertex_map=None):
     return V[used], remap[F], vertex_map
 
 
-def decimate(mesh, reduction=0.7, target_faces=None):
+def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = None) -> Resampled:
     """Quadric decimation (fast-simplification): fewer vertices where the surface is flat.
 
     Parameters
@@ -184,7 +191,7 @@ def decimate(mesh, reduction=0.7, target_faces=None):
     return Resampled(V2, F2, "decimate", params, vmap)
 
 
-def warm_up():
+def warm_up() -> None:
     """Run one pymeshlab filter in the calling thread.
 
     pymeshlab loads its plugins (and their libraries) at the first filter call. When that first
@@ -200,29 +207,11 @@ def warm_up():
     import open3d as o3d
 
     m = o3d.geometry.TriangleMesh.create_icosahedron(1.0)
-    ms, pymeshlab = _meshset(np.asarray(m.vertices), np.asarray(m.triangles))
-    _isotropic(ms, pymeshlab, 0.5, 1, False)
+    ms, pymeshlab = meshset(np.asarray(m.vertices), np.asarray(m.triangles))
+    isotropic(ms, pymeshlab, 0.5, 1, False)
 
 
-def _isotropic(ms, pymeshlab, length, iterations, selected):
-    """``pymeshlab``'s isotropic explicit remeshing with every parameter given (its defaults, but the
-    target length, iterations and selection): pymeshlab was seen to reuse a previous call's
-    ``selectedonly=True``, so nothing is left to what an earlier call set."""
-    ms.meshing_isotropic_explicit_remeshing(
-        iterations=iterations, adaptive=False, selectedonly=selected, targetlen=pymeshlab.PureValue(length),
-        featuredeg=30.0, checksurfdist=True, maxsurfdist=pymeshlab.PercentageValue(1.0), splitflag=True,
-        collapseflag=True, swapflag=True, smoothflag=True, reprojectflag=True)
-
-
-def _meshset(V, F):
-    import pymeshlab
-
-    ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(np.asarray(V, np.float64), np.asarray(F, np.int32)))
-    return ms, pymeshlab
-
-
-def _from_meshset(ms, kind, params):
+def _frommeshset(ms, kind, params):
     m = ms.current_mesh()
     # copies: pymeshlab's matrices may point into memory that dies with the MeshSet
     V, F = np.array(m.vertex_matrix(), np.float64, copy=True), np.array(m.face_matrix(), np.int64, copy=True)
@@ -238,26 +227,8 @@ def _from_meshset(ms, kind, params):
 REMESH_MAX_FACES = 1_000_000
 
 
-def _faces_at(area, length):
-    """The faces of an ``area`` covered by equilateral triangles of side ``length``."""
-    return area / (np.sqrt(3) / 4 * length**2)
-
-
-def _bound_faces(faces, max_faces, what):
-    """Refuse, before pymeshlab starts, a remeshing estimated to make more than ``max_faces``
-    faces: pymeshlab gives no estimate and cannot be interrupted."""
-    max_faces = checks.count(max_faces, "max_faces", maximum=2**62)
-    if faces > max_faces:
-        raise MeshError(f"{what} would make about {faces:.3g} faces (the area over an equilateral triangle's "
-                        f"at the target edge length), more than max_faces={max_faces}: use a longer edge length, "
-                        "or raise max_faces")
-
-
-def _area(V, F):
-    return 0.5 * float(np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1).sum())
-
-
-def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None, max_faces=REMESH_MAX_FACES):
+def remesh(mesh: MeshLike, target_edge_length: float | None = None, iterations: int = 10,
+           edge_factor: float | None = None, max_faces: int = REMESH_MAX_FACES) -> Resampled:
     """Isotropic explicit remeshing (pymeshlab): a uniform sampling of the same surface.
 
     Parameters
@@ -309,16 +280,17 @@ def remesh(mesh, target_edge_length=None, iterations=10, edge_factor=None, max_f
     diag = float(np.linalg.norm(np.ptp(V, axis=0)))
     if not (np.isfinite(L) and 0 < L < diag):
         raise MeshError(f"target_edge_length must lie in (0, {diag:.4g}) (the bounding-box diagonal), got {L}")
-    _bound_faces(_faces_at(_area(V, F), L), max_faces, f"remesh with target_edge_length={L:.4g}")
-    ms, pymeshlab = _meshset(V, F)
-    _isotropic(ms, pymeshlab, L, int(iterations), False)
+    bound_faces(faces_at(area(V, F), L), max_faces, f"remesh with target_edge_length={L:.4g}")
+    ms, pymeshlab = meshset(V, F)
+    isotropic(ms, pymeshlab, L, int(iterations), False)
     params = {"target_edge_length": L, "iterations": int(iterations)}
     if edge_factor is not None:
         params["edge_factor"] = float(edge_factor)
-    return _from_meshset(ms, "remesh", params)
+    return _frommeshset(ms, "remesh", params)
 
 
-def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6, max_faces=REMESH_MAX_FACES):
+def anisotropic(mesh: MeshLike, coarse: float = 8.0, fine: float = 0.5, axis: int = 0, iterations: int = 6,
+                max_faces: int = REMESH_MAX_FACES) -> Resampled:
     """A strongly non-uniform sampling: the half ``x_axis < median`` remeshed coarse, the other fine.
 
     Parameters
@@ -360,20 +332,22 @@ def anisotropic(mesh, coarse=8.0, fine=0.5, axis=0, iterations=6, max_faces=REME
     mean_edge = float(np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1)))
     cut = float(np.median(V[:, axis]))
     below = V[F, axis].mean(axis=1) < cut
-    faces = sum(_faces_at(_area(V, F[half]), length * mean_edge) for half, length in ((below, coarse), (~below, fine)))
-    _bound_faces(faces, max_faces, f"anisotropic with coarse={coarse:g}, fine={fine:g}")
+    faces = sum(faces_at(area(V, F[half]), length * mean_edge) for half, length in ((below, coarse), (~below, fine)))
+    bound_faces(faces, max_faces, f"anisotropic with coarse={coarse:g}, fine={fine:g}")
     c = "xyz"[axis]
-    ms, pymeshlab = _meshset(V, F)
+    ms, pymeshlab = meshset(V, F)
     for cond, length in ((f"({c}0+{c}1+{c}2)/3 < {cut!r}", coarse), (f"({c}0+{c}1+{c}2)/3 >= {cut!r}", fine)):
         ms.set_selection_none()
         ms.compute_selection_by_condition_per_face(condselect=cond)
-        _isotropic(ms, pymeshlab, length * mean_edge, int(iterations), True)
+        isotropic(ms, pymeshlab, length * mean_edge, int(iterations), True)
     ms.set_selection_none()
-    return _from_meshset(ms, "anisotropic", {"coarse": coarse, "fine": fine, "axis": axis,
+    return _frommeshset(ms, "anisotropic", {"coarse": coarse, "fine": fine, "axis": axis,
                                              "iterations": int(iterations)})
 
 
 _JITTER_MIN_AREA = 0.1  # least (new area projected on the original plane) / (original area) of a jittered face
+
+
 _JITTER_HALVINGS = 8  # rounds that halve the moves of the vertices of failing faces, before zeroing them
 
 
@@ -412,7 +386,7 @@ def _limit_moves(V, F, d, s):
         s[F[bad].reshape(-1)] = 0.0
 
 
-def jitter(mesh, amount=0.3, seed=0):
+def jitter(mesh: MeshLike, amount: float = 0.3, seed: int = 0) -> Resampled:
     """Move every vertex at random in its tangent plane, never folding a face.
 
     Same connectivity, new sample positions. Each vertex gets a Gaussian proposal (standard
@@ -499,7 +473,7 @@ def jitter(mesh, amount=0.3, seed=0):
     return Resampled(W, F.copy(), "jitter", params, np.arange(len(V)))
 
 
-def subdivide(mesh, iterations=1, method="midpoint"):
+def subdivide(mesh: MeshLike, iterations: int = 1, method: str = "midpoint") -> Resampled:
     """Subdivide every triangle into four, ``iterations`` times.
 
     Parameters
@@ -542,7 +516,7 @@ KINDS = {"decimate": decimate, "remesh": remesh, "anisotropic": anisotropic, "ji
          "subdivide": subdivide}
 
 
-def resample(mesh, kind, **params):
+def resample(mesh: MeshLike, kind: str, **params: object) -> Resampled:
     """One of the resamplings by name: ``resample(mesh, "remesh", target_edge_length=0.01)``.
 
     Examples
@@ -558,200 +532,3 @@ def resample(mesh, kind, **params):
         return KINDS[kind](mesh, **params)
     except TypeError as e:
         raise MeshError(f"resampling {kind!r}: {e}") from e
-
-
-def point_arrays(cloud):
-    """Positions (n, 3) float64 and normals (n, 3) or None of an Open3D point cloud (tensor or legacy).
-
-    Examples
-    --------
-    >>> import numpy as np, open3d as o3d
-    >>> from o3dheat.geometry.sampling import point_arrays
-    >>> pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(np.eye(3, dtype=np.float32)))
-    >>> P, N = point_arrays(pc)
-    >>> P.dtype, P.shape, N is None
-    (dtype('float64'), (3, 3), True)
-    """
-    import open3d as o3d
-
-    if isinstance(cloud, o3d.t.geometry.PointCloud):
-        if "positions" not in cloud.point or len(cloud.point.positions) == 0:
-            raise MeshError("the point cloud is empty")
-        P = cloud.point.positions.numpy().astype(np.float64)
-        N = cloud.point.normals.numpy().astype(np.float64) if "normals" in cloud.point else None
-    elif isinstance(cloud, o3d.geometry.PointCloud):
-        if not cloud.has_points():
-            raise MeshError("the point cloud is empty")
-        P = np.asarray(cloud.points, dtype=np.float64)
-        N = np.asarray(cloud.normals, dtype=np.float64) if cloud.has_normals() else None
-    else:
-        raise MeshError(f"expected an Open3D point cloud, got {type(cloud).__name__}")
-    if not np.all(np.isfinite(P)):
-        raise MeshError("the point cloud has NaN or infinite coordinates")
-    return P, N
-
-
-def reconstruct(cloud, method="poisson", depth=8, neighbours=30, trim=0.0):
-    """A triangle mesh through a point cloud.
-
-    Parameters
-    ----------
-    cloud : o3d.t.geometry.PointCloud or o3d.geometry.PointCloud
-        Normals are estimated (``neighbours`` nearest points) and oriented consistently when
-        missing.
-    method : {"poisson", "ball_pivoting"}
-        Screened Poisson (watertight, new vertices) or ball pivoting (the points themselves as
-        vertices, radii from the mean spacing).
-    depth : int
-        Octree depth of the Poisson reconstruction.
-    neighbours : int
-        Neighbours for the normal estimation and orientation.
-    trim : float
-        Poisson only: remove this fraction of the vertices with the lowest sample density (the
-        surface Poisson invents far from the points, for open scans); 0 keeps a closed surface.
-
-    Returns
-    -------
-    V : (r, 3) float64 ndarray
-    F : (m, 3) int64 ndarray
-
-    Examples
-    --------
-    >>> import numpy as np, open3d as o3d
-    >>> from o3dheat.geometry.sampling import reconstruct
-    >>> P = np.random.default_rng(0).standard_normal((3000, 3)); P /= np.linalg.norm(P, axis=1)[:, None]
-    >>> V, F = reconstruct(o3d.t.geometry.PointCloud(o3d.core.Tensor(P)))
-    >>> bool(abs(np.linalg.norm(V, axis=1).mean() - 1) < 0.02)
-    True
-    """
-    import open3d as o3d
-
-    if method not in ("poisson", "ball_pivoting"):
-        raise MeshError(f"unknown reconstruction {method!r}: use 'poisson' or 'ball_pivoting'")
-    P, N = point_arrays(cloud)
-    check_points(P, planar=False, min_points=10, what="the point cloud to reconstruct")
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(P))
-    if N is None or not np.all(np.isfinite(N)):
-        pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(neighbours))
-        pcd.orient_normals_consistent_tangent_plane(neighbours)
-        # orient outwards on average (a closed surface around its centroid)
-        Nn = np.asarray(pcd.normals)
-        if np.sum(np.einsum("ij,ij->i", Nn, P - P.mean(0))) < 0:
-            pcd.normals = o3d.utility.Vector3dVector(-Nn)
-    else:
-        pcd.normals = o3d.utility.Vector3dVector(N)
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        if method == "poisson":
-            mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=depth)
-            if trim > 0:
-                dens = np.asarray(dens)
-                mesh.remove_vertices_by_mask(dens < np.quantile(dens, trim))
-        else:
-            spacing = float(np.mean(pcd.compute_nearest_neighbor_distance()))
-            radii = o3d.utility.DoubleVector([1.5 * spacing, 3 * spacing, 6 * spacing])
-            mesh = o3d.geometry.TriangleMesh.create_from_point_cloud_ball_pivoting(pcd, radii)
-    mesh.remove_unreferenced_vertices()
-    if len(mesh.triangles) == 0:
-        raise MeshError(f"the {method} reconstruction produced no triangles")
-    # reconstructions often have non-manifold edges or vertices: split them, so that topology
-    # (critical points, persistence) works on the surface (o3dheat.repair)
-    return as_arrays(repair(mesh).mesh)
-
-
-def _surface_of(source):
-    if isinstance(source, Resampled):
-        return source.V, source.F
-    return as_arrays(source)
-
-
-def transfer(values, source, target):
-    """Evaluate the PL function given at the vertices of ``source`` at the vertices of ``target``.
-
-    Each target point is projected on the closest point of the source surface (Open3D's
-    RaycastingScene) and gets the barycentric interpolation of that triangle's vertex values:
-    exact for functions linear on the source triangles (coordinates, for example), and the
-    identity when both samplings are the same mesh.
-
-    Parameters
-    ----------
-    values : (r,) or (r, c) array_like
-        One row per source vertex.
-    source : Open3D mesh, (V, F) or Resampled
-        The surface on whose vertices ``values`` are given.
-    target : Open3D mesh, (V, F), Resampled, or (p, 3) array of points
-        Where the function is evaluated: the vertices of a mesh, or points (projected on the closest
-        point of the source).
-
-    Returns
-    -------
-    (p,) or (p, c) float64 ndarray
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from o3dheat.geometry.sampling import transfer
-    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]]); F = np.array([[0, 1, 2]])
-    >>> transfer(V[:, 0], (V, F), np.array([[0.25, 0.25, 1.0]])).round(6).tolist()
-    [0.25]
-    """
-    import open3d as o3d
-
-    V, F = _surface_of(source)
-    if isinstance(target, np.ndarray) and target.ndim == 2 and target.shape[1] == 3:
-        pts = np.asarray(target, dtype=np.float64)
-    else:
-        pts = _surface_of(target)[0]
-    vals = checks.field(values, len(V), "values (one row per source vertex)")
-    # Open3D's closest-point scene is float32: centre and scale both point sets on the source's
-    # bounding box first (georeferenced scans sit 1e6 units from the origin, where float32 steps
-    # are 0.5 units); the barycentric coordinates are then computed in float64
-    centre = (V.min(axis=0) + V.max(axis=0)) / 2
-    size = float(np.max(np.ptp(V, axis=0))) or 1.0
-    V, pts = (V - centre) / size, (np.asarray(pts, dtype=np.float64) - centre) / size
-    scene = o3d.t.geometry.RaycastingScene()
-    tm = o3d.t.geometry.TriangleMesh()
-    tm.vertex.positions = o3d.core.Tensor(V.astype(np.float32))
-    tm.triangle.indices = o3d.core.Tensor(np.asarray(F, dtype=np.uint32))
-    scene.add_triangles(tm)
-    ans = scene.compute_closest_points(o3d.core.Tensor(pts.astype(np.float32)))
-    tri = ans["primitive_ids"].numpy().astype(np.int64)
-    # barycentric coordinates in float64 at the float32 closest point, for exactness
-    corner = np.asarray(F, dtype=np.int64)[tri]
-    w = _barycentric(pts, V[corner[:, 0]], V[corner[:, 1]], V[corner[:, 2]])
-    if vals.ndim == 1:
-        return np.einsum("pk,pk->p", w, vals[corner])
-    return np.einsum("pk,pkc->pc", w, vals[corner])
-
-
-def _barycentric(p, a, b, c):
-    """Barycentric coordinates of the closest point of triangle abc to p (clamped to the triangle)."""
-    ab, ac = b - a, c - a
-    n = np.cross(ab, ac)
-    nn = np.einsum("ij,ij->i", n, n)
-    q = p - (np.einsum("ij,ij->i", p - a, n) / np.where(nn > 0, nn, 1.0))[:, None] * n  # onto the plane
-    aq = q - a
-    d00, d01, d11 = np.einsum("ij,ij->i", ab, ab), np.einsum("ij,ij->i", ab, ac), np.einsum("ij,ij->i", ac, ac)
-    d20, d21 = np.einsum("ij,ij->i", aq, ab), np.einsum("ij,ij->i", aq, ac)
-    den = d00 * d11 - d01 * d01
-    den = np.where(den > 0, den, 1.0)
-    v = (d11 * d20 - d01 * d21) / den
-    w = (d00 * d21 - d01 * d20) / den
-    u = 1.0 - v - w
-    W = np.clip(np.stack([u, v, w], 1), 0.0, None)
-    return W / W.sum(axis=1, keepdims=True)
-
-
-def nearest(values, source, points):
-    """Values at the nearest of the ``source`` positions (a k-d tree), for each of ``points``.
-
-    Examples
-    --------
-    >>> from o3dheat.geometry.sampling import nearest
-    >>> nearest([1.0, 2.0], [[0, 0, 0], [1, 0, 0]], [[0.9, 0, 0]]).tolist()
-    [2.0]
-    """
-    from scipy.spatial import cKDTree
-
-    vals = np.asarray(checks.values(values))
-    _, idx = cKDTree(np.asarray(source, dtype=np.float64)).query(np.asarray(points, dtype=np.float64))
-    return vals[idx]

@@ -56,7 +56,7 @@ def new_geometry(F):
 
 def soup(corners):
     """A TriangleMesh whose every triangle has its own three vertices (what STL stores; o3dheat
-    welds them where it computes: :func:`o3dheat.geometry.mesh.prepare`)."""
+    welds them where it computes: :func:`o3dheat.geometry.welding.prepare`)."""
     import open3d as o3d
 
     V = np.ascontiguousarray(corners, dtype=np.float64).reshape(-1, 3)

@@ -12,7 +12,7 @@ with it, as a third-party plugin would be.
 Notes
 -----
 Meshes: the filter works on the mesh itself. Point clouds: ``operators="reconstruct"`` builds a
-surface through the points (:func:`o3dheat.geometry.sampling.reconstruct`, Poisson), moves input
+surface through the points (:func:`o3dheat.geometry.points.reconstruct`, Poisson), moves input
 fields to its vertices (nearest point), computes there and brings results back to the points by
 barycentric interpolation at the closest surface point; ``operators="robust"`` uses
 robust-laplacian's point-cloud Laplacian and lumped mass on the points directly (no surface, so
@@ -30,7 +30,7 @@ import numpy as np
 import open3d as o3d
 
 from o3dheat.errors import MeshError
-from o3dheat.geometry import as_arrays, sampling
+from o3dheat.geometry import as_arrays, interpolation, points
 from o3dheat.geometry import mesh as meshes
 from o3dheat.spectral import HeatFlow, HeatKernel, Spectrum, heatflow, kernel, spectrum
 from o3dheat.typing import MeshLike
@@ -359,7 +359,7 @@ class Site:
         """
         if self.is_mesh or self.operators == "robust":
             return f
-        return sampling.nearest(f, self.P, self.surface()[0])
+        return interpolation.nearest(f, self.P, self.surface()[0])
 
     def from_surface(self, g: np.ndarray) -> np.ndarray:
         """Per-surface-vertex values -> per-input-vertex values.
@@ -377,7 +377,7 @@ class Site:
         V, F = self.surface()
         g = np.asarray(g)
         flat = g.reshape(len(V), -1)
-        out = sampling.transfer(flat, (V, F), self.P)
+        out = interpolation.transfer(flat, (V, F), self.P)
         return out.reshape((self.n,) + g.shape[1:])
 
     def spectrum(self, k: int = 100, mass: str = "consistent", cache: typing.Any = None) -> Spectrum:
@@ -415,7 +415,7 @@ def _reconstruction(site):
     h = hashlib.sha256(np.ascontiguousarray(site.P).tobytes())
     if "normals" in site.attrs:
         h.update(np.ascontiguousarray(site.attrs["normals"].numpy(), dtype=np.float64).tobytes())
-    return spectrum.memoized(("reconstruct", h.hexdigest()), lambda: sampling.reconstruct(site.out))
+    return spectrum.memoized(("reconstruct", h.hexdigest()), lambda: points.reconstruct(site.out))
 
 
 def _robust_operators(P):

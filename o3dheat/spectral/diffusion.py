@@ -79,7 +79,7 @@ def diffuse(mesh, f, dt, steps, scheme="explicit", mass="consistent", backend="a
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
-        The surface, repaired for the FEM by :func:`o3dheat.geometry.mesh.prepare` (not modified).
+        The surface, repaired for the FEM by :func:`o3dheat.geometry.welding.prepare` (not modified).
     f : (n,) or (n, c) array_like
         Initial field(s).
     dt : float

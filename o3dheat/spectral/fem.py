@@ -66,7 +66,7 @@ def _corner_geometry(V, F):
     dbl, cot, sq = loops.corner_geometry(V / s if s != 1.0 else V, F)
     if np.any(dbl <= 0):
         raise MeshError(f"{int(np.sum(dbl <= 0))} faces have zero area: repair the mesh first "
-                        "(o3dheat.geometry.mesh.prepare drops them)")
+                        "(o3dheat.geometry.welding.prepare drops them)")
     if s != 1.0:  # cotangents are scale free; areas and squared lengths scale with s²
         dbl, sq = dbl * (s * s), sq * (s * s)
     return dbl, cot, sq

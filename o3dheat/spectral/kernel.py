@@ -193,7 +193,7 @@ def heat_kernel(mesh, k=100, variant="weighted", normalize=None, transfer=None, 
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
-        The surface, repaired for the FEM by :func:`o3dheat.geometry.mesh.prepare` (not modified).
+        The surface, repaired for the FEM by :func:`o3dheat.geometry.welding.prepare` (not modified).
     k : int
         Eigenpairs.
     variant : str

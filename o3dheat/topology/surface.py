@@ -10,7 +10,7 @@ Notes
   otherwise, with advice). Faces repeating a vertex and duplicate faces are dropped with a
   warning; vertices referenced by no face are not part of the surface and never critical.
 * **Duplicate vertices** (referenced, exactly equal coordinates: STL files, triangle soups) are
-  welded as for the FEM (:func:`o3dheat.geometry.mesh.prepare`) when the mesh comes with coordinates
+  welded as for the FEM (:func:`o3dheat.geometry.welding.prepare`) when the mesh comes with coordinates
   (not by :meth:`Surface.from_faces`): the faces use the first copy of each vertex, so results
   are those of the welded mesh. Vertex indices (critical points, pairs) name that first copy; a
   field is averaged over the copies of each vertex; per-vertex outputs

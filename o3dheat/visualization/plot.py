@@ -594,7 +594,7 @@ def _field_values(f, n):
 
 
 def _welded(V, F, values):
-    """``(V, F, values)`` as every o3dheat function sees the mesh (:func:`o3dheat.geometry.mesh.prepare`):
+    """``(V, F, values)`` as every o3dheat function sees the mesh (:func:`o3dheat.geometry.welding.prepare`):
     exactly coincident vertices welded (an STL file's per-triangle copies: otherwise every
     triangle is a part of its own, with its own critical points, and the shading is faceted),
     degenerate faces and unreferenced vertices dropped; a welded vertex's value is the mean of

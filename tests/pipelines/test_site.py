@@ -124,13 +124,13 @@ def test_a_point_cloud_is_reconstructed_once_per_chain_and_degenerate_clouds_are
     three points, flat for a reconstruction) ended in raw Qhull or geometry-central errors."""
     import logging
 
-    import o3dheat.geometry.sampling as sampling
+    import o3dheat.geometry.points as points
     import o3dheat.spectral.spectrum as S
 
     S.clear_cache()
     calls = []
-    real = sampling.reconstruct
-    monkeypatch.setattr(sampling, "reconstruct", lambda *a, **kw: calls.append(1) or real(*a, **kw))
+    real = points.reconstruct
+    monkeypatch.setattr(points, "reconstruct", lambda *a, **kw: calls.append(1) or real(*a, **kw))
     pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(sphere_points()))
     chain = flt.Chain([flt.get("scalar", kind="height"), flt.get("heat_smooth", attribute="height"),
                        flt.get("hks", times=[0.1])])

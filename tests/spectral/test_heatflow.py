@@ -276,7 +276,7 @@ def small_meshes(draw):
        seed=st.integers(0, 1000))
 def test_hypothesis_against_dense(mesh, variant, times, seed):
     V, F = mesh
-    prep = o3dheat.geometry.mesh.prepare((V, F))
+    prep = o3dheat.geometry.welding.prepare((V, F))
     Vp, Fp = prep.V, prep.F
     L, W, lam, X = dense(Vp, Fp, variant)
     scale = 1.0 / max(lam.max(), 1e-12)  # times from 0 to 50 / λ_max ... 50 / λ_max * 1e4
@@ -306,7 +306,7 @@ def _sample(name):
 @pytest.mark.parametrize("name", ["airplane.obj", "bone.ply", "cube.obj", "cow.obj"])
 def test_real_files_agree_with_the_certified_spectral_kernel(name):
     mesh = _sample(name)
-    K = o3dheat.heat_kernel(mesh, k=min(60, len(o3dheat.geometry.mesh.prepare(mesh).V)))
+    K = o3dheat.heat_kernel(mesh, k=min(60, len(o3dheat.geometry.welding.prepare(mesh).V)))
     V = o3dheat.as_arrays(mesh)[0]
     f = V[:, 1] + np.sin(4 * V[:, 0] / np.ptp(V[:, 0]))
     lk = K.spectrum.eigenvalues[-1]

@@ -380,7 +380,7 @@ def _certificate_meshes():
 @pytest.mark.parametrize("variant", list(o3dheat.VARIANTS))
 def test_truncation_certificates_hold_against_complete_spectra(variant):
     for name, (V, F) in _certificate_meshes().items():
-        n_ref = len(o3dheat.geometry.mesh.prepare((V, F)).V)
+        n_ref = len(o3dheat.geometry.welding.prepare((V, F)).V)
         full = o3dheat.heat_kernel((V, F), k=n_ref, variant=variant)
         part = o3dheat.heat_kernel((V, F), k=30, variant=variant)
         t = np.array([0.0, 1e-3, 1e-2, 0.1, 1.0, 40.0]) / part.spectrum.eigenvalues[-1]

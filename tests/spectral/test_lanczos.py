@@ -92,7 +92,7 @@ def test_results_do_not_depend_on_the_thread_count(monkeypatch):
 
 
 def test_a_warm_start_block_gives_the_same_spectrum_with_fewer_solves():
-    from o3dheat.geometry import sampling
+    from o3dheat.geometry import interpolation, sampling
 
     V, F = icosphere(4)
     ref = o3dheat.eigensolve((V, F), k=40, method="dense")
@@ -100,7 +100,7 @@ def test_a_warm_start_block_gives_the_same_spectrum_with_fewer_solves():
     for seed in (1, 2, 3):  # a restart more or less decides one run: the saving shows on several
         Vj = sampling.jitter((V, F), amount=0.2, seed=seed)
         L, B, sigma, solve = operators((Vj.V, Vj.F))
-        X0 = sampling.transfer(ref.eigenvectors, (V, F), Vj.V)  # the reference's eigenvectors, moved over
+        X0 = interpolation.transfer(ref.eigenvectors, (V, F), Vj.V)  # the reference's eigenvectors, moved over
         cold = block_lanczos(L, B, solve, 40, sigma)
         for s in (1, 2):
             start = X0 @ np.random.default_rng(s).standard_normal((40, 8))

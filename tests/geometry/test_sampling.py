@@ -1,4 +1,4 @@
-"""Resampling, reconstruction and transfer between samplings."""
+"""o3dheat.geometry.sampling: the resamplings (decimate, remesh, anisotropic, jitter, subdivide)."""
 
 import numpy as np
 import open3d as o3d
@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import o3dheat
-from o3dheat.geometry.sampling import decimate, nearest, reconstruct, transfer
+from o3dheat.geometry.sampling import decimate
 from o3dheat.topology import Surface
 
 
@@ -26,68 +26,6 @@ def test_decimate_gives_an_irregular_2_manifold():
     assert edge.max() / np.median(edge) > 2  # non-uniform
     with pytest.raises(o3dheat.MeshError):
         decimate(bunny, reduction=1.0)
-
-
-def test_transfer_is_exact_for_linear_functions():
-    V, F = icosphere(3)
-    f = 2 * V[:, 0] - V[:, 1] + 0.5
-    P = icosphere(2)[0] * 1.0  # points on the sphere, also vertices of the coarser sphere
-    g = transfer(f, (V, F), P)
-    assert np.allclose(g, 2 * P[:, 0] - P[:, 1] + 0.5, atol=1e-6)
-    G = transfer(np.stack([f, -f], 1), (V, F), P)
-    assert G.shape == (len(P), 2) and np.allclose(G[:, 1], -g)
-    with pytest.raises(o3dheat.MeshError):
-        transfer(f[:5], (V, F), P)
-    assert nearest(f, V, V[:7] + 1e-9).tolist() == f[:7].tolist()
-
-
-def test_transfer_far_from_the_origin_and_bad_values():
-    """A georeferenced scan (5e6 m from the origin) transfers as well as at the origin; NaN values
-    are refused, not propagated."""
-    V, F = icosphere(3)
-    f = 2 * V[:, 0] - V[:, 1] + 0.5
-    P = icosphere(2)[0] * 1.0
-    g = transfer(f, (V, F), P)
-    offset = np.array([5e6, -3e6, 1e5])
-    np.testing.assert_allclose(transfer(f, (V + offset, F), P + offset), g, atol=1e-7)
-    bad = f.copy()
-    bad[3] = np.nan
-    with pytest.raises(o3dheat.MeshError, match="NaN"):
-        transfer(bad, (V, F), P)
-
-
-@pytest.mark.parametrize("method", ["poisson", "ball_pivoting"])
-def test_reconstruct_a_sphere(method):
-    P = np.random.default_rng(0).standard_normal((4000, 3))
-    P /= np.linalg.norm(P, axis=1)[:, None]
-    V, F = reconstruct(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(P)), method=method)
-    assert abs(np.linalg.norm(V, axis=1).mean() - 1) < 0.02 and len(F) > 1000
-    if method == "poisson":
-        assert Surface((V, F)).euler_characteristic == 2  # closed, a sphere
-
-
-def test_reconstruct_bad_input():
-    with pytest.raises(o3dheat.MeshError):
-        reconstruct(o3d.t.geometry.PointCloud(o3d.core.Tensor(np.zeros((3, 3)))))
-    with pytest.raises(o3dheat.MeshError):
-        reconstruct(o3d.geometry.PointCloud(), method="poisson")
-    with pytest.raises(o3dheat.MeshError):
-        reconstruct(o3d.t.geometry.PointCloud(o3d.core.Tensor(np.random.rand(50, 3))), method="nope")
-
-
-def test_transfer_is_the_identity_on_the_same_mesh():
-    from conftest import irregular
-
-    V, F = irregular()
-    f = np.random.default_rng(2).standard_normal((len(V), 3))
-    assert np.allclose(transfer(f, (V, F), (V, F)), f, atol=1e-10)
-    from o3dheat.geometry.sampling import subdivide
-
-    s = subdivide((V, F), 2)  # its vertices lie on the source surface: linear fields transfer exactly
-    assert np.allclose(transfer(V, (V, F), s), s.V, atol=1e-12)
-    r = decimate((V, F), reduction=0.5)  # off the surface: within the decimation's deviation
-    assert np.allclose(transfer(V, (V, F), r), r.V, atol=0.02)
-    assert np.allclose(transfer(r.V[:, 0], r, r.mesh), r.V[:, 0], atol=1e-10)
 
 
 def test_decimation_map():
@@ -303,16 +241,3 @@ def test_decimating_to_fewer_than_4_faces_is_a_clear_error():
             decimate(sphere, **bad)
 
 
-def test_reconstructing_a_degenerate_cloud_is_a_named_error():
-    """Issue 22: collinear, coincident, too few or flat points ended in raw Qhull/Open3D errors."""
-    import open3d as o3d
-
-    from o3dheat.geometry.sampling import reconstruct
-
-    rng = np.random.default_rng(0)
-    for msg, P in {"all coincide": np.ones((50, 3)),
-                   "one line": np.c_[np.linspace(0, 1, 50), np.zeros(50), np.zeros(50)],
-                   "distinct points": rng.random((3, 3)),
-                   "one plane": np.c_[rng.random((200, 2)), np.zeros(200)]}.items():
-        with pytest.raises(o3dheat.MeshError, match=msg):
-            reconstruct(o3d.t.geometry.PointCloud(o3d.core.Tensor(P)))

@@ -1,0 +1,52 @@
+"""o3dheat.geometry.interpolation: functions moved between samplings (transfer, nearest)."""
+
+import numpy as np
+import pytest
+from conftest import icosphere
+
+import o3dheat
+from o3dheat.geometry.interpolation import nearest, transfer
+from o3dheat.geometry.sampling import decimate
+
+
+def test_transfer_is_exact_for_linear_functions():
+    V, F = icosphere(3)
+    f = 2 * V[:, 0] - V[:, 1] + 0.5
+    P = icosphere(2)[0] * 1.0  # points on the sphere, also vertices of the coarser sphere
+    g = transfer(f, (V, F), P)
+    assert np.allclose(g, 2 * P[:, 0] - P[:, 1] + 0.5, atol=1e-6)
+    G = transfer(np.stack([f, -f], 1), (V, F), P)
+    assert G.shape == (len(P), 2) and np.allclose(G[:, 1], -g)
+    with pytest.raises(o3dheat.MeshError):
+        transfer(f[:5], (V, F), P)
+    assert nearest(f, V, V[:7] + 1e-9).tolist() == f[:7].tolist()
+
+
+def test_transfer_far_from_the_origin_and_bad_values():
+    """A georeferenced scan (5e6 m from the origin) transfers as well as at the origin; NaN values
+    are refused, not propagated."""
+    V, F = icosphere(3)
+    f = 2 * V[:, 0] - V[:, 1] + 0.5
+    P = icosphere(2)[0] * 1.0
+    g = transfer(f, (V, F), P)
+    offset = np.array([5e6, -3e6, 1e5])
+    np.testing.assert_allclose(transfer(f, (V + offset, F), P + offset), g, atol=1e-7)
+    bad = f.copy()
+    bad[3] = np.nan
+    with pytest.raises(o3dheat.MeshError, match="NaN"):
+        transfer(bad, (V, F), P)
+
+
+def test_transfer_is_the_identity_on_the_same_mesh():
+    from conftest import irregular
+
+    V, F = irregular()
+    f = np.random.default_rng(2).standard_normal((len(V), 3))
+    assert np.allclose(transfer(f, (V, F), (V, F)), f, atol=1e-10)
+    from o3dheat.geometry.sampling import subdivide
+
+    s = subdivide((V, F), 2)  # its vertices lie on the source surface: linear fields transfer exactly
+    assert np.allclose(transfer(V, (V, F), s), s.V, atol=1e-12)
+    r = decimate((V, F), reduction=0.5)  # off the surface: within the decimation's deviation
+    assert np.allclose(transfer(V, (V, F), r), r.V, atol=0.02)
+    assert np.allclose(transfer(r.V[:, 0], r, r.mesh), r.V[:, 0], atol=1e-10)
