@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Benchmark: does a warm start pay in a robustness study? A resampled mesh's spectrum solved from
 a random start block, and from random combinations of its reference's eigenvectors transferred onto
-it (``sampling.transfer``), measured in one run on the same factor.
+it (``interpolation.transfer``), measured in one run on the same factor.
 
     .venv/bin/python scripts/bench_warm_start.py            # the 20k-vertex bunny, k = 100
     .venv/bin/python scripts/bench_warm_start.py --n 50000
@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_spectrum import bunny  # noqa: E402
 
 import o3dheat  # noqa: E402
-from o3dheat.geometry import sampling  # noqa: E402
+from o3dheat.geometry import interpolation, sampling  # noqa: E402
 from o3dheat.spectral import fem, lanczos, linalg, spectrum
 
 RESAMPLINGS = [("jitter", {"amount": 0.3}), ("decimate", {"reduction": 0.5}), ("remesh", {}), ("anisotropic", {})]
@@ -53,7 +53,7 @@ def main():
     print("|---|---|---|---|---|---|")
     for kind, params in RESAMPLINGS:
         r = sampling.resample((V, F), kind, **params)
-        X0, t_transfer = best(lambda: sampling.transfer(ref.eigenvectors, (V, F), r.V), args.repeat)  # noqa: B023 - best calls it at once
+        X0, t_transfer = best(lambda: interpolation.transfer(ref.eigenvectors, (V, F), r.V), args.repeat)  # noqa: B023 - best calls it at once
         L, B, _ = fem.operators(r.V, r.F, "consistent")
         perm = reverse_cuthill_mckee(sp.csr_matrix(L), symmetric_mode=True)
         L, B = spectrum._permuted(L, perm), spectrum._permuted(B, perm)

@@ -316,7 +316,7 @@ class HeatFlow:
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F)
-        Repaired as by :func:`o3dheat.geometry.mesh.prepare` (welded duplicates, dropped degenerate faces).
+        Repaired as by :func:`o3dheat.geometry.welding.prepare` (welded duplicates, dropped degenerate faces).
     variant : str
         A key of :data:`o3dheat.spectral.kernel.VARIANTS`: its mass ``W`` (consistent ``B`` for the paper's
         "weighted" kernel, ``I`` for "linear", lumped, Voronoi).
@@ -736,7 +736,7 @@ def heat_flow(mesh, f, t, *, variant="weighted", normalize=None, transfer=None, 
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
-        The surface, repaired for the FEM by :func:`o3dheat.geometry.mesh.prepare` (not modified).
+        The surface, repaired for the FEM by :func:`o3dheat.geometry.welding.prepare` (not modified).
     f : (n,) or (n, c) array_like
         The field(s), one row per vertex.
     t : float or (T,) array_like

@@ -67,9 +67,9 @@ class Spectrum:
         Ascending, ``>= 0``, in units of 1/length² (for mass "identity": dimensionless).
     eigenvectors : (n, k) float64 ndarray
         B-orthonormal columns with fixed signs (0 at unreferenced vertices; the copies of a
-        welded duplicate vertex share its value, see :mod:`o3dheat.geometry.mesh`).
+        welded duplicate vertex share its value, see :mod:`o3dheat.geometry.welding`).
     stiffness : (n, n) scipy.sparse.csc_matrix
-        The cotangent matrix ``L`` (on welded duplicates: ``P D⁻¹ L D⁻¹ Pᵀ``, see :mod:`o3dheat.geometry.mesh`).
+        The cotangent matrix ``L`` (on welded duplicates: ``P D⁻¹ L D⁻¹ Pᵀ``, see :mod:`o3dheat.geometry.welding`).
     mass : (n, n) scipy.sparse.csc_matrix
         ``B`` as chosen by ``mass_kind`` (the identity for "identity"; on welded duplicates
         ``P D⁻¹ B D⁻¹ Pᵀ``).
@@ -87,7 +87,7 @@ class Spectrum:
     timings : dict
         Seconds spent per stage ("assemble", "factorize", "solve").
     faces : (m, 3) int64 ndarray or None
-        The faces the operators were built on (after the repairs of :func:`o3dheat.geometry.mesh.prepare`),
+        The faces the operators were built on (after the repairs of :func:`o3dheat.geometry.welding.prepare`),
         in the caller's vertex numbering: what the topology of smoothed fields is computed on.
     inverse_mass_bound : (n,) float64 ndarray or None
         An upper bound of the diagonal of the inverse mass (of the welded vertex a vertex is a
@@ -619,7 +619,7 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F) tuple
-        Any triangle mesh; boundaries are free (Neumann). Repairs of :func:`o3dheat.geometry.mesh.prepare`
+        Any triangle mesh; boundaries are free (Neumann). Repairs of :func:`o3dheat.geometry.welding.prepare`
         apply: exactly coincident vertices are welded (each copy gets its welded vertex's
         values), unreferenced vertices get 0 in every eigenvector.
     k : int
