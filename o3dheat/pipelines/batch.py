@@ -1,10 +1,14 @@
 """A chain of filters over many files: one task per file, in-process or on Dask, resumable.
 
-::
+Entry points: :func:`run` (a chain over files, a table of their status), :func:`expand` (the
+inputs of paths and patterns), :func:`outputs` (their output files), :func:`summary` and
+:func:`named_error` (reporting). ::
 
     table = o3dheat.pipelines.batch.run(chain, "scans/*.ply", "out/")
     o3dheat batch 'scans/*.ply' --out out/ -f scalar:kind=height -f heat_smooth:attribute=height
 
+Notes
+-----
 Inputs are paths or glob patterns (expanded here: quote them in the shell; ``**`` recurses, into
 each folder once: links to folders are followed, and a link loop ends), each pattern's matches
 sorted by name; a file named twice (or by links) is run once. Patterns match no file of the output
@@ -41,16 +45,28 @@ last bits from ``o3dheat apply`` when BLAS there runs on several threads.
 
 from __future__ import annotations
 
-import fnmatch
 import logging
 import os
-import re
 import time
 import traceback
+import typing
+from collections.abc import Sequence
 from pathlib import Path
 
+from threadpoolctl import threadpool_limits
+
+from o3dheat import spectral
 from o3dheat.errors import MeshError, SolverError
-from o3dheat.io import WRITERS, read_geometry, write_geometry
+from o3dheat.io import read_geometry, write_geometry
+from o3dheat.parallel import threads
+from o3dheat.typing import PathLike
+
+from ._inputs import MANIFEST, expand, outputs
+from .cluster import progress_bar, session, task_error
+from .filters import Chain
+
+if typing.TYPE_CHECKING:  # annotations only: pandas is imported where the table is made
+    import pandas as pd
 
 __all__ = ["run", "expand", "outputs", "summary", "named_error", "COLUMNS", "STATUSES", "MANIFEST"]
 
@@ -60,235 +76,11 @@ log = logging.getLogger("o3dheat")
 COLUMNS = ["input", "output", "status", "seconds", "error"]
 #: the values of its ``status`` column
 STATUSES = ("done", "skipped", "failed")
-#: the file in the output folder that records the chain (a chain file), for resuming
-MANIFEST = "o3dheat-batch.toml"
-SUFFIXES = tuple(WRITERS)  # the outputs: what o3dheat.io writes
-
-
-# ------------------------------------------------------------------------------- the files
-def expand(patterns, exclude=None):
-    """The input files of paths and glob patterns.
-
-    Parameters
-    ----------
-    patterns : str, Path or sequence of them
-        Files, or patterns with ``*``, ``?``, ``[...]`` (``**`` matches folders recursively; ``~``
-        is the home folder). Folders and hidden files are not matched. Links to folders are
-        followed, but each folder is entered once whatever its names (a link loop such as
-        ``ln -s . a/self`` ends), by its own name before a link's.
-    exclude : str or Path, optional
-        A folder that wildcards (``*``, ``**``...) do not enter: :func:`run` gives its output
-        folder, so that the outputs of a folder inside the inputs' tree are not taken for inputs
-        (a pattern that names the folder, such as ``out/*.ply``, still looks in it).
-
-    Returns
-    -------
-    list of Path
-        Each pattern's matches sorted by name, patterns in the order given, each file once (the
-        same file under two names, by links, is the first).
-
-    Raises
-    ------
-    MeshError
-        A pattern that matches no file, a missing file, a folder, or nothing given.
-
-    Examples
-    --------
-    >>> import os, tempfile
-    >>> from o3dheat.pipelines.batch import expand
-    >>> d = tempfile.mkdtemp()
-    >>> for name in ("b.ply", "a.ply", "c.obj"):
-    ...     open(os.path.join(d, name), "w").close()
-    >>> [p.name for p in expand([os.path.join(d, "*.ply"), os.path.join(d, "a.ply")])]
-    ['a.ply', 'b.ply']
-    >>> os.symlink(d, os.path.join(d, "self"))                  # a loop: each folder once
-    >>> [p.name for p in expand(os.path.join(d, "**", "*.ply"))]
-    ['a.ply', 'b.ply']
-    """
-    if isinstance(patterns, (str, os.PathLike)):
-        patterns = [patterns]
-    skip = set()  # the folders wildcards do not enter, as (device, inode)
-    if exclude is not None and _key(os.path.expanduser(os.fspath(exclude))) is not None:
-        skip.add(_key(os.path.expanduser(os.fspath(exclude))))
-    found, seen = [], set()
-    for pattern in patterns:
-        text = os.path.expanduser(os.fspath(pattern))
-        if _MAGIC.search(text):
-            pruned = []
-            matches = sorted(set(_glob(text, skip, pruned)))
-            if not matches:
-                why = f" (the output folder {os.fspath(exclude)} is not searched)" if pruned else ""
-                raise MeshError(f"no file matches {os.fspath(pattern)!r}{why}")
-        elif os.path.isdir(text):
-            raise MeshError(f"{text} is a folder: give files or a pattern such as "
-                            f"'{os.path.join(text, '*.ply')}'")
-        elif not os.path.isfile(text):
-            raise MeshError(f"no such file: {text}")
-        else:
-            matches = [text]
-        for m in matches:
-            key = _key(m) or os.path.realpath(m)
-            if key not in seen:
-                seen.add(key)
-                found.append(Path(m))
-    if not found:
-        raise MeshError("no input files given")
-    return found
-
-
-_MAGIC = re.compile(r"[*?[]")
-
-
-def _key(path):
-    """(device, inode) of a file or folder (links followed): the same for all its names; None when
-    it cannot be read."""
-    try:
-        st = os.stat(path)
-    except OSError:
-        return None
-    return st.st_dev, st.st_ino
-
-
-def _entries(folder):
-    """(name, is a folder, is a link) of a folder's entries, sorted by name; none when unreadable."""
-    out = []
-    try:
-        with os.scandir(folder or os.curdir) as it:
-            for e in it:
-                try:
-                    out.append((e.name, e.is_dir(), e.is_symlink()))
-                except OSError:
-                    pass
-    except OSError:
-        return []
-    return sorted(out)
-
-
-def _visible(name, part):
-    """``glob``'s rule: a name starting with a dot is matched only by a pattern that does."""
-    return not name.startswith(".") or part.startswith(".")
-
-
-def _glob(pattern, skip, pruned):
-    """The files that match a glob pattern (``glob.glob(pattern, recursive=True)``'s rules), where
-    each ``**`` enters each folder once: links followed, but a folder already entered (by its own
-    name or another link) is not entered again, so link loops end. Wildcards do not enter the
-    folders of ``skip`` ((device, inode) pairs); ``pruned`` gets those they did not enter."""
-    drive, rest = os.path.splitdrive(pattern)
-    seps = os.sep + (os.altsep or "")
-    root = drive + os.sep if rest[:1] and rest[0] in seps else drive
-    parts = [p for p in re.split(f"[{re.escape(seps)}]", rest) if p]
-    return list(_match(root, parts, {}, skip, pruned))
-
-
-def _match(folder, parts, entered, skip, pruned):
-    head, rest = parts[0], parts[1:]
-    if head == "**":  # zero or more folders; the remaining parts are matched in each
-        for d in _folders(folder, entered.setdefault(len(parts), set()), skip, pruned):
-            if rest:
-                yield from _match(d, rest, entered, skip, pruned)
-            else:
-                yield from (os.path.join(d, name) for name, is_dir, _ in _entries(d)
-                            if not is_dir and _visible(name, "") and os.path.isfile(os.path.join(d, name)))
-        return
-    magic = _MAGIC.search(head)
-    if magic:
-        names = [name for name, is_dir, _ in _entries(folder)
-                 if (is_dir or not rest) and _visible(name, head) and fnmatch.fnmatch(name, head)]
-    else:
-        names = [head]
-    for name in names:
-        path = os.path.join(folder, name)
-        if rest:
-            if magic and skip and _key(path) in skip:
-                pruned.append(path)
-            elif os.path.isdir(path):
-                yield from _match(path, rest, entered, skip, pruned)
-        elif os.path.isfile(path):
-            yield path
-
-
-def _folders(top, entered, skip, pruned):
-    """``top`` and the folders under it, each real folder once (``entered``: the (device, inode) of
-    those entered, updated); links to folders are followed after the folders' own names, so that a
-    folder is named by its path rather than by a link; hidden folders are left out, as by glob, and
-    so are those of ``skip`` under ``top`` (added to ``pruned``)."""
-    out, roots = [], [top]
-    while roots:
-        stack = [roots.pop(0)]
-        while stack:
-            d = stack.pop()
-            key = _key(d or os.curdir)
-            if key is None or key in entered:
-                continue
-            if key in skip and out:
-                pruned.append(d)
-                continue
-            entered.add(key)
-            out.append(d)
-            subs = [(name, link) for name, is_dir, link in _entries(d) if is_dir and _visible(name, "")]
-            stack += [os.path.join(d, name) for name, link in reversed(subs) if not link]
-            roots += [os.path.join(d, name) for name, link in subs if link]
-    return out
-
-
-def outputs(inputs, out_dir, suffix=".ply"):
-    """The output file of each input, ``out_dir/<stem><suffix>``, checked.
-
-    Raises
-    ------
-    MeshError
-        Two inputs whose outputs have the same name (compared without regard to case), or an
-        output that would replace an input.
-
-    Examples
-    --------
-    >>> from o3dheat.pipelines.batch import outputs
-    >>> [str(p) for p in outputs(["scans/a.ply", "scans/b.obj"], "out")]
-    ['out/a.ply', 'out/b.ply']
-    >>> outputs(["x/a.ply", "y/a.obj"], "out")  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    o3dheat.errors.MeshError: x/a.ply and y/a.obj would both be written to out/a.ply: rename one, ...
-    """
-    if suffix not in SUFFIXES:
-        raise MeshError(f"the outputs are .ply or .npz files, got suffix {suffix!r}")
-    out_dir = Path(out_dir)
-    inputs = [Path(p) for p in inputs]
-    dsts, owner = [], {}
-    for src in inputs:
-        dst = out_dir / (src.stem + suffix)
-        key = dst.name.casefold()
-        if key in owner:
-            raise MeshError(f"{owner[key]} and {src} would both be written to {out_dir / (owner[key].stem + suffix)}: "
-                            "rename one, or run them into different folders")
-        owner[key] = src
-        dsts.append(dst)
-    real_inputs = {os.path.realpath(p).casefold(): p for p in inputs}
-    for dst in dsts + [out_dir / MANIFEST]:
-        src = real_inputs.get(os.path.realpath(dst).casefold())
-        if src is None and dst.exists():  # the same file by another name (a link)
-            src = next((p for p in inputs if _same_file(p, dst)), None)
-        if src is not None:
-            what = "the chain record" if dst.name == MANIFEST else "its output"
-            raise MeshError(f"refusing to overwrite the input {src} with {what} {dst}: choose another --out folder")
-    return dsts
-
-
-def _same_file(a, b):
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return False
 
 
 # ------------------------------------------------------------------------------- one file
 def _one(chain, src, dst, binary, single_threaded, name=None):
     """(status, seconds, error) of one file: read, run the chain, write atomically."""
-    from threadpoolctl import threadpool_limits
-
-    from o3dheat.parallel import threads
-
     t0 = time.perf_counter()
     named = _Named(src if name is None else name)  # as the user gave it
     log.addFilter(named)  # the warnings of a file's work say which file they are about
@@ -305,10 +97,8 @@ def _one(chain, src, dst, binary, single_threaded, name=None):
         log.debug("%s failed: %s", src, traceback.format_exc())
         return "failed", time.perf_counter() - t0, _message(e)
     finally:  # the file's spectra serve no other file: free them before the next one's
-        from o3dheat.spectral import clear_cache
-
         log.removeFilter(named)
-        clear_cache()
+        spectral.clear_cache()
 
 
 class _Named(logging.Filter):
@@ -327,8 +117,6 @@ class _Named(logging.Filter):
 def _message(e):
     """An error as one line: o3dheat's own errors say what was wrong as they are, others with
     their type (:func:`o3dheat.pipelines.cluster.task_error`: a Dask worker's death with its usual cause)."""
-    from .cluster import task_error
-
     if isinstance(e, (MeshError, SolverError)):
         return " ".join(str(e).split()) or repr(e)
     return task_error(e)
@@ -347,8 +135,6 @@ def _plain(x):
 def _recorded(out_dir, chain):
     """Whether the folder's record holds this chain: True, False (another chain, or a record
     that cannot be read) or None (no record)."""
-    from .filters import Chain
-
     path = out_dir / MANIFEST
     if not path.exists():
         return None
@@ -362,8 +148,6 @@ def _preflight(chain, paths, out_dir, overwrite, suffix):
     """(chain, inputs, outputs, record) after every check, before any work; writes nothing.
     ``record`` writes the folder and its chain record (called once the scheduler is reached, so
     that a bad scheduler address leaves no folder behind)."""
-    from .filters import Chain
-
     if not isinstance(chain, Chain):
         chain = Chain(chain)
     if not len(chain):
@@ -394,8 +178,8 @@ def _preflight(chain, paths, out_dir, overwrite, suffix):
     def record():
         try:
             out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as e:
-            raise MeshError(f"cannot create the output folder {out_dir}: {e.strerror}") from None
+        except OSError as e:  # a file-system failure stays one, naming the folder
+            raise type(e)(e.errno, f"cannot create the output folder {out_dir}: {e.strerror}") from None
         if not same:
             try:
                 chain.save(out_dir / MANIFEST)
@@ -406,7 +190,9 @@ def _preflight(chain, paths, out_dir, overwrite, suffix):
 
 
 # ------------------------------------------------------------------------------- the batch
-def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", binary=True, progress=None):
+def run(chain: Chain | Sequence, paths: PathLike | Sequence[PathLike], out_dir: PathLike, scheduler: object = None,
+        overwrite: bool = False, suffix: str = ".ply", binary: bool = True, progress: bool | None = None
+        ) -> pd.DataFrame:
     """Run a chain of filters on many files, one task per file (see the module notes).
 
     Parameters
@@ -457,9 +243,7 @@ def run(chain, paths, out_dir, scheduler=None, overwrite=False, suffix=".ply", b
     >>> o3dheat.pipelines.batch.run(chain, os.path.join(d, "*.ply"), os.path.join(d, "out"), scheduler="sequential")["status"].tolist()
     ['skipped', 'skipped']
     """
-    import pandas as pd
-
-    from .cluster import progress_bar, session
+    import pandas as pd  # here, not at the top: pandas costs ~0.4 s, which `import o3dheat` avoids
 
     for value, name in ((overwrite, "overwrite"), (binary, "binary"), (progress, "progress")):
         if not isinstance(value, bool) and not (value is None and name == "progress"):
@@ -520,7 +304,7 @@ def _size(path):
         return 0
 
 
-def named_error(path, error):
+def named_error(path: PathLike, error: str) -> str:
     """``"path: error"``, unless the error already starts with the path.
 
     Examples
@@ -533,7 +317,7 @@ def named_error(path, error):
     return error if error.startswith(path) else f"{path}: {error}"
 
 
-def summary(table):
+def summary(table: pd.DataFrame) -> str:
     """One line: how many files were done, skipped and failed, and the time they took.
 
     Examples

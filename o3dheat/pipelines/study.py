@@ -375,8 +375,8 @@ def _record(out, state):
     """The study folder, its ``tasks/`` and its record ``study.json``."""
     try:
         (out / "tasks").mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise MeshError(f"cannot create the study folder {out / 'tasks'}: {e.strerror}") from None
+    except OSError as e:  # a file-system failure stays one, naming the folder
+        raise type(e)(e.errno, f"cannot create the study folder {out / 'tasks'}: {e.strerror}") from None
     atomic_write_text(out / "study.json", json.dumps(state, indent=1, sort_keys=True))
 
 
