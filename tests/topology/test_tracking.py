@@ -241,7 +241,7 @@ def test_the_stop_criterion_reads_the_tracks():
 
 def test_chi_at_every_scale_on_genus_two():
     """Issue 24's ground truth: χ at every scale on genus 2 too (χ = -2), for a noisy field."""
-    from test_topology import genus2
+    from topology_cases import genus2
 
     V, F = genus2()
     f = V[:, 0] + 0.05 * np.random.default_rng(3).standard_normal(len(V))
