@@ -907,7 +907,7 @@ def test_colours_are_stored_once(tmp_path, colors, stored, binary):
 def test_formats_are_one_table_that_reading_and_batches_follow(tmp_path, monkeypatch):
     """Issue 23: one READERS/WRITERS table: a reader added there is what read_mesh and batches
     use; the batches' output suffixes are the writers'."""
-    import o3dheat.pipelines.batch as batch
+    import o3dheat.pipelines._inputs as batch  # the batches' inputs and outputs
     from o3dheat.io import meshes as io
 
     assert batch.SUFFIXES == tuple(io.WRITERS) and set(io.WRITERS) <= set(io.READERS)
