@@ -1,4 +1,12 @@
-"""Pipelines: filters and their registry, batches of files, robustness studies on Dask."""
+"""Pipelines: filters and their registry, batches of files, robustness studies on Dask.
+
+Entry points: :func:`apply` and :func:`one_column` (:mod:`o3dheat.pipelines.filters`; the filter SDK
+is :mod:`o3dheat.pipelines.site`), :func:`run`, :func:`summary` and :func:`named_error`
+(:mod:`o3dheat.pipelines.batch`), :func:`robustness_study` and :func:`load_config`
+(:mod:`o3dheat.pipelines.study`).
+"""
+
+import importlib
 
 from .batch import named_error, run, summary
 from .filters import apply, one_column
@@ -6,6 +14,15 @@ from .study import load_config, robustness_study
 
 # isort: split
 # the modules, as attributes of the package
-from . import batch, cluster, filters, study, workers  # noqa: E402
+from . import batch, cluster, columns, filters, site, study  # noqa: E402
 
-__all__ = ["apply", "one_column", "named_error", "run", "summary", "load_config", "robustness_study", "filters", "batch", "cluster", "workers", "study"]
+__all__ = ["apply", "one_column", "named_error", "run", "summary", "load_config", "robustness_study", "filters",
+           "columns", "site", "batch", "cluster", "workers", "study"]
+
+
+def __getattr__(name):
+    # workers subclasses Dask's WorkerPlugin: importing distributed costs ~0.5 s, which `import o3dheat`
+    # does not pay; o3dheat.pipelines.workers is imported when first asked for
+    if name == "workers":
+        return importlib.import_module(".workers", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,6 +1,11 @@
-"""Dask clients for o3dheat's many-task jobs (studies, batches): a local cluster, a running
-cluster by address, or in-process; and the progress bar.
+"""Dask clients for o3dheat's many-task jobs (studies, batches), in-process or on a cluster, and the progress bar.
 
+Entry points: :func:`session` (the ``scheduler`` argument made a client, closed after the job),
+:func:`local_cluster`, :func:`connect`, :func:`register_warm_up`, :func:`task_error`,
+:func:`progress_bar`, :func:`unguarded_main`.
+
+Notes
+-----
 The ``scheduler`` argument of :func:`o3dheat.robustness_study` and :func:`o3dheat.pipelines.batch.run`:
 
 * ``None``: a local Dask cluster started for the job and closed after it: one worker process per
@@ -28,7 +33,9 @@ import contextlib
 import logging
 import os
 import sys
+import typing
 
+from o3dheat import geometry, topology
 from o3dheat.errors import MeshError, SolverError
 
 from ._dask_logs import dask_logs
@@ -39,7 +46,7 @@ _TRIM_ENV = "MALLOC_TRIM_THRESHOLD_"
 _TRIM = f"distributed.nanny.pre-spawn-environ.{_TRIM_ENV}"
 
 
-def local_cluster(n_workers=None, pin=True):
+def local_cluster(n_workers: int | None = None, pin: bool = True) -> typing.Any:
     """A local Dask cluster of single-threaded worker processes, without a dashboard.
 
     The workers keep glibc's adaptive memory thresholds: they start without
@@ -87,7 +94,7 @@ def local_cluster(n_workers=None, pin=True):
         raise MeshError(f"{script} starts a local Dask cluster from its top level: put that code under "
                         "'if __name__ == \"__main__\":' (Dask's worker processes run the script again), or "
                         "pass scheduler=\"sequential\"")
-    from .workers import OneLineLogs, PinToCore
+    from .workers import OneLineLogs, PinToCore  # here: workers imports distributed (~0.5 s), see its docstring
 
     plugins = (OneLineLogs(),)
     cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
@@ -105,7 +112,7 @@ def local_cluster(n_workers=None, pin=True):
             os.environ[_TRIM_ENV] = saved
 
 
-def unguarded_main():
+def unguarded_main() -> str | None:
     """The main script's path when the code calling this runs at its top level, outside an
     ``if __name__ == "__main__":`` block; else None (guarded, interactive, ``python -c``).
 
@@ -153,7 +160,7 @@ def unguarded_main():
     return path
 
 
-def connect(scheduler, warm_up=False):
+def connect(scheduler: typing.Any, warm_up: bool = False) -> tuple:
     """A Dask client for a ``scheduler`` argument (see the module notes).
 
     Parameters
@@ -223,7 +230,7 @@ def connect(scheduler, warm_up=False):
     return client, owned
 
 
-def close(client, owned):
+def close(client: typing.Any, owned: bool) -> None:
     """Close a client from :func:`connect` and, when it started one, its local cluster.
 
     The shutdown of a cluster started here is silent: what Dask logs then (comms closed under
@@ -241,7 +248,7 @@ def close(client, owned):
 
 
 @contextlib.contextmanager
-def session(scheduler, warm_up=False):
+def session(scheduler: typing.Any, warm_up: bool = False) -> typing.Iterator:
     """``with session(scheduler) as client:`` :func:`connect`, then :func:`close` on the way out.
 
     With a local cluster started here (``scheduler=None``), Dask's log records are one line each
@@ -280,14 +287,11 @@ def _warm_up():
     :func:`o3dheat.geometry.sampling.warm_up`) and loading the topology's compiled loops
     (:func:`o3dheat.topology.warm_up`, 0.3 s per process: in a study it made every worker's first
     task slower)."""
-    from o3dheat.geometry import warm_up as meshlab
-    from o3dheat.topology import warm_up as topology
-
-    meshlab()
-    topology()
+    geometry.warm_up()
+    topology.warm_up()
 
 
-def register_warm_up(client):
+def register_warm_up(client: typing.Any) -> None:
     """``pymeshlab``'s first call in each worker's main thread and the topology's compiled loops
     loaded, now and in workers that join later (see :func:`o3dheat.geometry.sampling.warm_up` and
     :func:`o3dheat.topology.warm_up`).
@@ -309,6 +313,7 @@ def register_warm_up(client):
         name = "o3dheat-pymeshlab-warm-up"
 
         def setup(self, worker):
+            # in the worker: this class travels by value (cloudpickle), the function by its module's name
             from .cluster import _warm_up
 
             _warm_up()
@@ -317,7 +322,7 @@ def register_warm_up(client):
     register(WarmUp())
 
 
-def task_error(e):
+def task_error(e: BaseException) -> str:
     """An exception raised by a Dask task's future, as one line; a worker's death says what most
     often causes it.
 
@@ -342,7 +347,7 @@ def task_error(e):
     return f"{type(e).__name__}: {' '.join(str(e).split()) or repr(e)}"
 
 
-def progress_bar(total, progress=None, unit="task"):
+def progress_bar(total: int, progress: bool | None = None, unit: str = "task") -> typing.Any:
     """A tqdm bar on stderr, or None.
 
     Parameters
