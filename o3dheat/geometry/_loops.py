@@ -1,6 +1,10 @@
-"""The loops over faces of :mod:`o3dheat.geometry.mesh` and :mod:`o3dheat.spectral.fem`, compiled
+"""Compiled loops over faces: :func:`double_areas`, :func:`corner_geometry`, :func:`pattern`,
+:func:`fill`, :func:`components`, :func:`abs_row_sums`, :func:`first_rows`.
+
+The loops of :mod:`o3dheat.geometry` and :mod:`o3dheat.spectral.fem`, compiled
 (:func:`o3dheat._jit.compiled`): triangle areas, corner cotangents, and the one sparsity pattern
-that the stiffness and the consistent mass share, filled in one pass.
+that the stiffness and the consistent mass share, filled in one pass; connected components, row
+sums, and the first copies of rows.
 
 Each loop visits the faces in their order and adds into each entry in that order, so results do
 not depend on anything but the input. Vertex indices are int64.

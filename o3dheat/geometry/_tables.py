@@ -1,9 +1,11 @@
-"""The mesh tables behind :mod:`o3dheat.geometry` and its users (fem, topology, sampling, plot):
-unique rows, edges, degenerate and zero-area faces, exact copies, welding, corners and fans,
-non-manifold edges and vertices, vertex normals, and the cleaning every computation applies
-(:func:`clean`). The package's internal API: plain names, no checks of the arguments (the public
-functions that call them check), imported by the modules downstream of :mod:`o3dheat.geometry.mesh`
-instead of its private names.
+"""Mesh tables, the geometry's internal API: :func:`edges`, :func:`weld_copies`, :func:`clean`,
+:func:`first_copies`, :func:`vertex_normals`, ...
+
+The tables behind :mod:`o3dheat.geometry` and its users (fem, topology, sampling, plot): unique
+rows, edges, degenerate and zero-area faces, exact copies, welding, corners and fans, non-manifold
+edges and vertices, vertex normals, and the cleaning every computation applies (:func:`clean`).
+Plain names, no checks of the arguments (the public functions that call them check), imported by
+the modules downstream of :mod:`o3dheat.geometry.mesh` instead of its private names.
 """
 
 from __future__ import annotations
