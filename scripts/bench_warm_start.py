@@ -27,7 +27,7 @@ from bench_spectrum import bunny  # noqa: E402
 
 import o3dheat  # noqa: E402
 from o3dheat.geometry import interpolation, sampling  # noqa: E402
-from o3dheat.spectral import fem, lanczos, linalg, spectrum
+from o3dheat.spectral import _solvers, fem, lanczos, linalg
 
 RESAMPLINGS = [("jitter", {"amount": 0.3}), ("decimate", {"reduction": 0.5}), ("remesh", {}), ("anisotropic", {})]
 
@@ -56,8 +56,8 @@ def main():
         X0, t_transfer = best(lambda: interpolation.transfer(ref.eigenvectors, (V, F), r.V), args.repeat)  # noqa: B023 - best calls it at once
         L, B, _ = fem.operators(r.V, r.F, "consistent")
         perm = reverse_cuthill_mckee(sp.csr_matrix(L), symmetric_mode=True)
-        L, B = spectrum._permuted(L, perm), spectrum._permuted(B, perm)
-        s = spectrum._shift(B)
+        L, B = _solvers._permuted(L, perm), _solvers._permuted(B, perm)
+        s = _solvers._shift(B)
         fac = linalg.factorize(L - s * B)
         start = X0[perm] @ np.random.default_rng(1).standard_normal((args.k, 8))
         cold, t_cold = best(lambda: lanczos.block_lanczos(L, B, fac.solve, args.k, s), args.repeat)  # noqa: B023 - best calls it at once

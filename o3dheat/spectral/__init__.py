@@ -1,13 +1,14 @@
 """Spectral operators: linear FEM, Cholesky factors, eigenpairs, heat kernels, exact heat flow."""
 
+from .cache import clear_cache, set_cache
 from .diffusion import diffuse
 from .fem import mass_matrix, stiffness_matrix
 from .heatflow import HeatFlow, heat_flow
 from .kernel import VARIANTS, HeatKernel, heat_kernel
-from .spectrum import Spectrum, clear_cache, eigensolve, set_cache, shared_eigensolve
+from .spectrum import Spectrum, eigensolve, shared_eigensolve
 
 # isort: split
 # the modules, as attributes of the package
-from . import diffusion, fem, heatflow, kernel, krylov, lanczos, linalg, memory, spectrum  # noqa: E402
+from . import cache, diffusion, fem, heatflow, kernel, krylov, lanczos, linalg, memory, spectrum  # noqa: E402
 
-__all__ = ["mass_matrix", "stiffness_matrix", "Spectrum", "clear_cache", "eigensolve", "set_cache", "shared_eigensolve", "HeatKernel", "VARIANTS", "heat_kernel", "diffuse", "HeatFlow", "heat_flow", "fem", "linalg", "memory", "lanczos", "spectrum", "kernel", "diffusion", "krylov", "heatflow"]
+__all__ = ["mass_matrix", "stiffness_matrix", "Spectrum", "clear_cache", "eigensolve", "set_cache", "shared_eigensolve", "HeatKernel", "VARIANTS", "heat_kernel", "diffuse", "HeatFlow", "heat_flow", "fem", "linalg", "memory", "lanczos", "spectrum", "cache", "kernel", "diffusion", "krylov", "heatflow"]

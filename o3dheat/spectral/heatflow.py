@@ -14,7 +14,7 @@ How: shift-and-invert Lanczos (:mod:`o3dheat.spectral.krylov`) on a sparse Chole
 factors sharing one symbolic analysis (made on another core while the operators are assembled)
 and the next one made on another core during the current one's solves. Factors are kept with the
 mesh's operators for later calls on the same geometry (the in-memory cache of
-:func:`o3dheat.spectral.spectrum.memoized`). The cost: assembling the operators and one factorization,
+:func:`o3dheat.spectral.cache.memoized`). The cost: assembling the operators and one factorization,
 plus about 27 solves for the paper's ten scales, or about 70 over two factors for times spanning
 four decades (to 1e-8; independent of the mesh size, measured by ``scripts/bench_heat.py``).
 
@@ -52,11 +52,12 @@ from o3dheat.geometry import prepare
 from o3dheat.geometry._loops import abs_row_sums, components
 
 from . import fem
+from .cache import memoized, memoized_has
 from .kernel import NORMALIZATIONS, first_nonzero, mass_of, transfer_function
 from .krylov import MIN_STEPS, propagate
 from .linalg import analyze, factorize
 from .memory import available_memory, check_memory
-from .spectrum import memoized, memoized_has, shared_eigensolve
+from .spectrum import shared_eigensolve
 
 __all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "shift_groups", "SPLIT_RANGE", "METHODS"]
 

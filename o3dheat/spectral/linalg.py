@@ -1,5 +1,12 @@
 """Sparse Cholesky factorizations behind one interface: CHOLMOD (scikit-sparse) -> cholespy -> SuperLU.
 
+Entry points: :func:`factorize` (a :class:`Factor`), :func:`analyze` (an :class:`Analysis` shared
+by the factorizations of one pattern), :func:`available_backends`. The CHOLMOD binding is
+:mod:`o3dheat.spectral._cholmod`; the memory checks made before factorizing are
+:mod:`o3dheat.spectral.memory`.
+
+Notes
+-----
 ``factorize(A)`` returns a :class:`Factor` whose ``solve`` accepts one right-hand side ``(n,)`` or
 many ``(n, c)``. With ``backend="auto"`` the first backend that is installed and succeeds is used;
 each fallback is logged as a warning naming the reason, and the factor says which backend it is.
@@ -33,6 +40,7 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from numpy.typing import ArrayLike
 
 from o3dheat import parallel
 from o3dheat.errors import SolverError
@@ -52,7 +60,7 @@ MODES = ("auto", "simplicial", "supernodal")
 SUPERNODAL_MIN_N = 100_000  # "auto": supernodal from here (measured in scripts/bench_spectrum.py)
 
 
-def available_backends():
+def available_backends() -> list[str]:
     """Names of the factorization backends importable here, in order of preference.
 
     Returns
@@ -109,7 +117,7 @@ class Factor:
         #: bytes the factor holds (an estimate; 0 where the backend does not tell)
         self.nbytes = int(getattr(solve, "nbytes", 0))
 
-    def solve(self, b, out=None):
+    def solve(self, b: ArrayLike, out: np.ndarray | None = None) -> np.ndarray:
         """Solve ``A x = b``.
 
         Parameters
@@ -153,7 +161,7 @@ class Factor:
 
     __call__ = solve
 
-    def release(self):
+    def release(self) -> None:
         """Give back the memory of the last solve's workspaces (they are made again by the next
         solve): CHOLMOD keeps about three ``(n, columns)`` arrays per thread between solves.
 
@@ -169,7 +177,7 @@ class Factor:
             release()
 
 
-def analyze(A, mode="auto"):
+def analyze(A: sp.spmatrix, mode: str = "auto") -> Analysis | None:
     """The symbolic analysis of ``A``'s pattern, for :func:`factorize` (``analysis=``) of any
     matrix with that pattern; None where CHOLMOD's binding is not available (each factorization
     then analyses its own matrix). Runs without Python's GIL: it can overlap other work.
@@ -276,7 +284,7 @@ def _sksparse(A, mode):
     return f.solve_A
 
 
-def cholespy_bytes(A):
+def cholespy_bytes(A: sp.spmatrix) -> int:
     """Bytes cholespy is expected to need to factorize ``A`` (it does not report running out of
     memory: it crashes the process, so this is checked before it starts). With CHOLMOD's binding
     the factor's size is counted by a symbolic analysis (``40 nnz(L) + 64 n``, as for CHOLMOD's
@@ -337,7 +345,7 @@ def _superlu(A):
     return solve
 
 
-def factorize(A, backend="auto", mode="auto", analysis=None):
+def factorize(A: sp.spmatrix, backend: str = "auto", mode: str = "auto", analysis: Analysis | None = None) -> Factor:
     """Factorize a sparse symmetric positive definite matrix once, for many solves.
 
     Parameters

@@ -10,7 +10,7 @@ from __future__ import annotations
 from o3dheat import parallel
 from o3dheat.errors import SolverError
 
-__all__ = ["OutOfMemory", "available_memory", "memory_limits", "check_memory", "THREAD_ADDRESS_SPACE"]
+__all__ = ["OutOfMemory", "available_memory", "memory_limits", "check_memory", "peak_memory", "THREAD_ADDRESS_SPACE"]
 
 
 class OutOfMemory(SolverError):
@@ -30,7 +30,7 @@ class OutOfMemory(SolverError):
     """
 
 
-def available_memory():
+def available_memory() -> int | None:
     """Bytes this process may still allocate: the smallest of what each known limit leaves (see
     :func:`memory_limits`); None when no limit is known.
 
@@ -50,7 +50,7 @@ def available_memory():
 THREAD_ADDRESS_SPACE = 104 * 2**20
 
 
-def memory_limits():
+def memory_limits() -> dict[str, int]:
     """What each limit on this process's memory still leaves, in bytes, by name.
 
     * ``"system"``: the system's available memory (``MemAvailable`` of /proc/meminfo);
@@ -207,9 +207,29 @@ _LIMIT_NAMES = {"cgroup": " (under the memory limit of this process's cgroup: a 
                 "address space": " (under the address-space limit, ulimit -v)"}
 
 
-def check_memory(needed, what, advice):
+def check_memory(needed: int, what: str, advice: str) -> None:
     """Raise :class:`OutOfMemory` when ``needed`` bytes exceed what this process may allocate
-    (the message names the limit: the system's memory, a cgroup's, a Dask worker's, ulimit -v)."""
+    (the message names the limit: the system's memory, a cgroup's, a Dask worker's, ulimit -v).
+
+    Parameters
+    ----------
+    needed : int
+        Bytes the work is estimated to need.
+    what : str
+        The work, as the message names it.
+    advice : str
+        What to do instead, ending the message.
+
+    Raises
+    ------
+    OutOfMemory
+        ``needed`` exceeds the tightest limit of :func:`memory_limits`.
+
+    Examples
+    --------
+    >>> import o3dheat.spectral.memory as mm
+    >>> mm.check_memory(1024, "a small task", "nothing")         # fits: no error
+    """
     room = memory_limits()
     name = min(room, key=room.get) if room else None
     if name is not None and needed > room[name]:
@@ -218,3 +238,32 @@ def check_memory(needed, what, advice):
         raise OutOfMemory(f"{what} needs about {needed / 2**30:.2f} GiB, but only {have / 2**30:.2f} GiB "
                           f"are available{where}: {advice}")
 
+
+def peak_memory(n: int, k: int = 100, block: int = 8) -> int:
+    """Estimated peak memory of an iterative :func:`o3dheat.spectral.spectrum.eigensolve`, in bytes.
+
+    The Lanczos basis (``max(2k, k + 4 block) + block`` vectors of ``n`` float64) plus 2 KiB per
+    vertex for the Cholesky factor, the operators and the blocks of vectors, as measured on a mesh
+    of 1M vertices (``scripts/bench_spectrum.py``: resident memory added while solving peaked at
+    3.4 GiB for k = 100, 6.4 GiB for k = 300). A mesh fits when this is below the
+    memory available; eigensolve refuses with :class:`o3dheat.spectral.memory.OutOfMemory` otherwise.
+
+    Parameters
+    ----------
+    n : int
+        Vertices.
+    k, block : int
+        As for :func:`o3dheat.spectral.spectrum.eigensolve`.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> from o3dheat.spectral.memory import peak_memory
+    >>> round(peak_memory(1_000_000, 100) / 2**30, 1), round(peak_memory(1_000_000, 300) / 2**30, 1)
+    (3.5, 6.4)
+    """
+    basis = min(n, max(2 * k, k + 4 * block)) + block
+    return int(n * (8 * basis + 2048))

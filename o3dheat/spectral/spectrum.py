@@ -1,60 +1,69 @@
-"""The generalized eigenproblem ``L x = λ B x`` of the linear FEM, and its result, :class:`Spectrum`.
+"""The smallest eigenpairs of the linear FEM's ``L x = λ B x`` on a mesh: :func:`eigensolve`, :class:`Spectrum`.
 
+Entry points: :func:`eigensolve` (a mesh), :func:`eigensolve_operators` (operators built
+elsewhere), :func:`shared_eigensolve` (computed once per geometry and settings, then shared through
+:mod:`o3dheat.spectral.cache`), :class:`Spectrum` (the result; :meth:`Spectrum.save`,
+:meth:`Spectrum.load`), :func:`inverse_mass_bound`. The solvers themselves are in
+:mod:`o3dheat.spectral._solvers`.
+
+Notes
+-----
 The smallest ``k`` eigenpairs are found by shift-invert on one sparse Cholesky factor of
 ``L - σ B`` (``σ < 0``, so the matrix is positive definite even with several components), with
-CHOLMOD -> cholespy -> SuperLU as factorization backends (:mod:`o3dheat.spectral.linalg`). Small problems,
-or ``k`` close to ``n``, are solved densely.
+CHOLMOD -> cholespy -> SuperLU as factorization backends (:mod:`o3dheat.spectral.linalg`). Small
+problems, or ``k`` close to ``n``, are solved densely.
 
 Conventions: eigenvalues ascending and ``>= 0`` (``L`` is positive semi-definite); eigenvectors
 B-orthonormal (``Xᵀ B X = I``); the sign of each eigenvector is fixed so that its entry of largest
 magnitude is positive (first such entry on ties). Within a multiple eigenvalue (equal to the
 solver's accuracy) the basis is a canonical one of the eigenspace, whatever basis the solver
-found (:func:`_canonical_bases`): the same, to rounding, for every method, thread count and run;
-bit for bit only where the eigenvalues are simple.
+found (``_solvers._canonical_bases``): the same, to rounding, for every method, thread count and
+run; bit for bit only where the eigenvalues are simple.
 """
 
 from __future__ import annotations
 
-import contextlib
-import hashlib
 import logging
-import os
-import sys
 import time
-from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from scipy.sparse.csgraph import reverse_cuthill_mckee
+from numpy.typing import ArrayLike
+from scipy.sparse.csgraph import connected_components
 
-from o3dheat import checks, parallel
-from o3dheat.errors import ConvergenceError, MeshError, SolverError
+from o3dheat import checks
+from o3dheat.errors import MeshError
 from o3dheat.geometry import prepare
+from o3dheat.io import atomic_write
+from o3dheat.typing import MeshLike, PathLike
 
-from . import _cache, fem
-from .lanczos import block_lanczos, rayleigh_ritz
-from .linalg import factorize
-from .memory import OutOfMemory, available_memory, check_memory
+from . import _spectrum_files, fem
+from ._solvers import solve_eigenproblem, weyl_gap
+from .cache import SPECTRA, disk_folder, entry_valid, load_entry, memoized, save_entry, spectrum_key
+from .memory import OutOfMemory
 
-__all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "peak_memory", "default_cache_dir", "shared_eigensolve", "set_cache",
-           "memoized", "memoized_has", "cache_max_bytes", "inverse_mass_bound"]
+# isort: split
+# the names of the cache and of the memory estimate, reachable here as before they had their modules
+from .cache import cache_max_bytes as cache_max_bytes
+from .cache import clear_cache as clear_cache
+from .cache import default_cache_dir as default_cache_dir
+from .cache import memoized_has as memoized_has
+from .cache import memory_cache_max_bytes as memory_cache_max_bytes
+from .cache import set_cache as set_cache
+from .memory import peak_memory as peak_memory
+
+# the process's in-memory entries under their former name: tests/pipelines/test_batch.py counts them
+# (o3dheat.spectral.cache.SPECTRA is their home; drop this once that test reads it there)
+_MEMORY = SPECTRA.entries
+
+__all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "shared_eigensolve", "inverse_mass_bound"]
 
 log = logging.getLogger("o3dheat")
 
 #: eigensolver methods of :func:`eigensolve` (``method=``): defined here only
 METHODS = ("auto", "lanczos", "arpack", "dense")
-DENSE_MAX_N = 1200
-DENSE_LIMIT_N = 12_000  # above this a dense solve needs several GiB: never chosen automatically
-# Measured (scripts/bench_spectrum.py, 2 cores): the block Lanczos wins from about 10k vertices,
-# and from 3k when k >= 64 (1.1-2x at 3k-8k, k = 70-100); below, ARPACK's single-vector Lanczos on
-# the same CHOLMOD factor needs fewer solves and less work (10-20% faster for k = 10-50).
-LANCZOS_MIN_N = 10_000
-LANCZOS_MANY_K = (64, 3_000)  # (k, n): from k eigenpairs on n vertices up, Lanczos as well
-_CACHE_VERSION = "2"
 
 
 @dataclass
@@ -122,7 +131,7 @@ class Spectrum:
     inverse_mass_bound: np.ndarray | None = None
 
     @property
-    def n(self):
+    def n(self) -> int:
         """Number of vertices.
 
         Examples
@@ -134,7 +143,7 @@ class Spectrum:
         return self.eigenvectors.shape[0]
 
     @property
-    def k(self):
+    def k(self) -> int:
         """Number of eigenpairs.
 
         Examples
@@ -145,7 +154,7 @@ class Spectrum:
         """
         return len(self.eigenvalues)
 
-    def save(self, path, overwrite=False):
+    def save(self, path: PathLike, overwrite: bool = False) -> None:
         """Write the spectrum to a self-contained ``.npz`` file: eigenpairs, operators, mass kind,
         areas, faces, residuals and the inverse-mass bound (everything :meth:`load` needs to give
         back an equal :class:`Spectrum`, without the mesh). Written atomically: an interrupted
@@ -173,17 +182,15 @@ class Spectrum:
         >>> bool(np.array_equal(t.eigenvectors, s.eigenvectors)), t.mass_kind
         (True, 'consistent')
         """
-        from o3dheat.io import atomic_write
-
         path = Path(path)
         if path.suffix.lower() != ".npz":
             raise MeshError(f"a spectrum is saved as .npz: {path}")
         if path.exists() and not overwrite:
             raise MeshError(f"{path} exists: pass overwrite=True to replace it")
-        atomic_write(path, lambda fh: np.savez(fh, **_cache.spectrum_arrays(self)))
+        atomic_write(path, lambda fh: np.savez(fh, **_spectrum_files.spectrum_arrays(self)))
 
     @classmethod
-    def load(cls, path):
+    def load(cls, path: PathLike) -> Spectrum:
         """Read a spectrum written by :meth:`save` (or ``o3dheat spectrum -o``), checked before it
         is returned: consistent shapes, finite values, ascending eigenvalues ``>= 0``, eigenpairs of
         the stored operators (residuals recomputed: at most ten times the stored ones, and 1e-2) and
@@ -209,9 +216,9 @@ class Spectrum:
         --------
         See :meth:`save`.
         """
-        fields = _cache.read_spectrum(path)
+        fields = _spectrum_files.read_spectrum(path)
         s = cls(**fields, timings={"cache": True})
-        _check_loaded(s, path)
+        _spectrum_files.check_loaded(s, path)
         return s
 
     def __repr__(self):
@@ -219,211 +226,10 @@ class Spectrum:
                 f"eigenvalues=[{self.eigenvalues[0]:.4g} .. {self.eigenvalues[-1]:.4g}])")
 
 
-def _check_loaded(s, path):
-    """The checks of :meth:`Spectrum.load` (a MeshError naming the first that fails)."""
-    lam, X, L, B = s.eigenvalues, s.eigenvectors, s.stiffness, s.mass
-    n, k = X.shape
-    shapes = {"stiffness": L.shape, "mass": B.shape}
-    for name, shape in shapes.items():
-        if shape != (n, n):
-            raise MeshError(f"{path}: {name} is {shape[0]} x {shape[1]}, the eigenvectors have {n} rows")
-    for name, a in (("eigenvalues", lam), ("residuals", s.residuals), ("areas", s.areas)):
-        if a.shape != ((k,) if name != "areas" else (n,)):
-            raise MeshError(f"{path}: {name} has shape {a.shape}")
-    bound = s.inverse_mass_bound
-    if bound is not None and np.shape(bound) != (n,):
-        raise MeshError(f"{path}: inverse_mass_bound has shape {np.shape(bound)}, not ({n},)")
-    if not all(np.all(np.isfinite(a)) for a in (lam, X, L.data, B.data, s.residuals, s.areas)
-               + (() if bound is None else (bound,))):
-        raise MeshError(f"{path}: non-finite values")
-    if np.any(s.areas < 0) or (bound is not None and np.any(bound < 0)):
-        raise MeshError(f"{path}: negative areas or inverse-mass bound")
-    if s.mass_kind != "given":
-        try:
-            fem.check_mass_kind(s.mass_kind)
-        except MeshError as e:
-            raise MeshError(f"{path}: {e}") from None
-    if np.any(np.diff(lam) < 0) or lam[0] < 0:
-        raise MeshError(f"{path}: the eigenvalues are not ascending and >= 0")
-    if s.faces is not None and (s.faces.ndim != 2 or s.faces.shape[1] != 3 or s.faces.size
-                                and (s.faces.min() < 0 or s.faces.max() >= n)):
-        raise MeshError(f"{path}: faces of shape {s.faces.shape} do not index the {n} vertices")
-    res = _residuals(L, B, lam, X)
-    if res.max() > 1e-2 or np.any(res > np.maximum(10 * s.residuals, 1e-12)):
-        raise MeshError(f"{path}: the eigenpairs do not solve L x = λ B x for the stored operators "
-                        f"(residual {res.max():.1e}, stored {s.residuals.max():.1e})")
-    G = X.T @ (B @ X)
-    G[np.diag_indices(k)] -= 1.0
-    if np.abs(G).max() > 1e-6:
-        raise MeshError(f"{path}: the eigenvectors are not B-orthonormal (|XᵀBX - I| = {np.abs(G).max():.1e})")
-
-
-def default_cache_dir():
-    r"""Folder of the on-disk spectrum cache: ``$O3DHEAT_CACHE``, else the platform's user cache
-    folder (``$XDG_CACHE_HOME/o3dheat`` or ``~/.cache/o3dheat`` on Linux, ``~/Library/Caches/o3dheat``
-    on macOS, ``%LOCALAPPDATA%\o3dheat\Cache`` on Windows).
-
-    Returns
-    -------
-    pathlib.Path
-
-    Examples
-    --------
-    >>> import o3dheat.spectral.spectrum as s
-    >>> "o3dheat" in str(s.default_cache_dir())
-    True
-    """
-    env = os.environ.get("O3DHEAT_CACHE")
-    if env:
-        return Path(env)
-    if sys.platform == "win32" and os.environ.get("LOCALAPPDATA"):
-        return Path(os.environ["LOCALAPPDATA"]) / "o3dheat" / "Cache"
-    if sys.platform == "darwin":
-        return Path.home() / "Library" / "Caches" / "o3dheat"
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg and os.path.isabs(xdg) else Path.home() / ".cache") / "o3dheat"
-
-
-def cache_max_bytes():
-    """Size budget of the on-disk cache: ``$O3DHEAT_CACHE_MAX_MB`` megabytes, default 2048. The least
-    recently used spectra are deleted beyond it.
-
-    Returns
-    -------
-    int
-        Bytes.
-
-    Examples
-    --------
-    >>> import os, o3dheat.spectral.spectrum as s
-    >>> "O3DHEAT_CACHE_MAX_MB" in os.environ or s.cache_max_bytes() == 2048 * 2**20
-    True
-    """
-    return _megabytes("O3DHEAT_CACHE_MAX_MB", 2048)
-
-
-def _megabytes(variable, default):
-    """Bytes of the environment variable ``variable`` (megabytes), else of ``default``."""
-    try:
-        value = float(os.environ.get(variable, str(default)))
-        if not value >= 0:  # negative or NaN: a budget of nothing is 0
-            raise ValueError
-        return int(value * 2**20)
-    except (ValueError, OverflowError):  # not a number, negative, or inf
-        raise MeshError(f"{variable} must be a number of megabytes >= 0, got {os.environ[variable]!r}") from None
-
-
-# ------------------------------------------------------------------ the in-memory cache (shared)
-_MEMORY: OrderedDict = OrderedDict()
-_MEMORY_MAX = 8
-_DISK = None
-
-
-def memory_cache_max_bytes():
-    """Size budget of the in-memory cache: ``$O3DHEAT_MEMORY_CACHE_MB`` megabytes, default 1024.
-    Beyond it (or beyond 8 spectra) the least recently used spectra are dropped; the newest one is
-    always kept, whatever its size (the filters of a chain share it).
-
-    Returns
-    -------
-    int
-        Bytes.
-
-    Examples
-    --------
-    >>> import os, o3dheat.spectral.spectrum as s
-    >>> "O3DHEAT_MEMORY_CACHE_MB" in os.environ or s.memory_cache_max_bytes() == 1024 * 2**20
-    True
-    """
-    return _megabytes("O3DHEAT_MEMORY_CACHE_MB", 1024)
-
-
-def _nbytes(value):
-    """Bytes held by the arrays and sparse matrices among an object's attributes."""
-    total = 0
-    for v in (vars(value).values() if hasattr(value, "__dict__") else [value]):
-        if isinstance(v, np.ndarray):
-            total += v.nbytes
-        elif sp.issparse(v):
-            total += sum(getattr(v, a).nbytes for a in ("data", "indices", "indptr") if hasattr(v, a))
-    return total
-
-
-def set_cache(folder):
-    """The disk folder used by :func:`shared_eigensolve` (and the filters): a folder, True
-    (:func:`default_cache_dir`) or None (memory only, the default).
-
-    Examples
-    --------
-    >>> import tempfile, o3dheat.spectral.spectrum as s
-    >>> s.set_cache(tempfile.mkdtemp()); s.set_cache(None)
-    """
-    global _DISK
-    _DISK = folder
-
-
-def clear_cache():
-    """Forget the spectra kept in memory (the disk cache stays).
-
-    Examples
-    --------
-    >>> import o3dheat.spectral.spectrum as s
-    >>> s.clear_cache()
-    """
-    _MEMORY.clear()
-
-
-def memoized(key, compute):
-    """``compute()``, remembered under ``key`` among the last results (least recently used first
-    out: at most 8 and :func:`memory_cache_max_bytes`, the newest always kept): the one in-memory
-    cache of spectra, for meshes and for operators built elsewhere.
-
-    Parameters
-    ----------
-    key : hashable
-        What identifies the result (e.g. a hash of the geometry and the settings).
-    compute : callable
-        Called without arguments when ``key`` is not remembered.
-
-    Returns
-    -------
-    The result of ``compute()``, now or from an earlier call.
-
-    Examples
-    --------
-    >>> import o3dheat.spectral.spectrum as s
-    >>> calls = []
-    >>> s.memoized(("example", 1), lambda: calls.append(1) or 42), s.memoized(("example", 1), lambda: 0)
-    (42, 42)
-    >>> len(calls)
-    1
-    """
-    if key in _MEMORY:
-        _MEMORY.move_to_end(key)
-        return _MEMORY[key][0]
-    value = compute()
-    _MEMORY[key] = (value, _nbytes(value))
-    budget = memory_cache_max_bytes()
-    while len(_MEMORY) > 1 and (len(_MEMORY) > _MEMORY_MAX or sum(b for _, b in _MEMORY.values()) > budget):
-        _MEMORY.popitem(last=False)
-    return value
-
-
-def memoized_has(key):
-    """Whether :func:`memoized` holds a result for ``key`` now.
-
-    Examples
-    --------
-    >>> import o3dheat.spectral.spectrum as s
-    >>> s.memoized_has(("example", "absent"))
-    False
-    """
-    return key in _MEMORY
-
-
-def shared_eigensolve(V, F, k=100, mass="consistent", cache=None):
+def shared_eigensolve(V: ArrayLike, F: ArrayLike, k: int = 100, mass: str = "consistent",
+                      cache: PathLike | bool | None = None) -> Spectrum:
     """The spectrum of ``(V, F)``, computed once per geometry and settings and then shared (the
-    last few in memory, see :func:`memoized`; on disk too with ``cache`` or :func:`set_cache`).
+    last few in memory, see :func:`o3dheat.spectral.cache.memoized`; on disk too with ``cache`` or :func:`o3dheat.spectral.cache.set_cache`).
 
     Parameters
     ----------
@@ -437,7 +243,7 @@ def shared_eigensolve(V, F, k=100, mass="consistent", cache=None):
     mass : str
         A key of :data:`o3dheat.spectral.fem.MASS_KINDS`.
     cache : None, bool, str or Path
-        Disk folder (True: :func:`default_cache_dir`); None: what :func:`set_cache` set.
+        Disk folder (True: :func:`o3dheat.spectral.cache.default_cache_dir`); None: what :func:`o3dheat.spectral.cache.set_cache` set.
 
     Returns
     -------
@@ -453,167 +259,27 @@ def shared_eigensolve(V, F, k=100, mass="consistent", cache=None):
     True
     """
     k = _check_k(k)
-    key = _cache_key(np.asarray(V), np.asarray(F), k, mass, "auto")  # the k asked for: a repeat is a hit
+    key = spectrum_key(np.asarray(V), np.asarray(F), k, mass, "auto")  # the k asked for: a repeat is a hit
 
     def compute():  # capped at the vertices eigensolve solves on (prepare again there: O(n), once)
         r = len(prepare((V, F)).V)
-        return eigensolve((V, F), k=min(k, r), mass=mass, cache=_DISK if cache is None else cache)
+        return eigensolve((V, F), k=min(k, r), mass=mass, cache=SPECTRA.disk if cache is None else cache)
 
     return memoized(key, compute)
 
 
-def _fix_signs(X, chunk=16):
-    """In place: the entry of largest magnitude of each column becomes positive (the first one on
-    ties). By column chunks shared out among threads: no n x k temporary."""
 
-    def fix(a, z):
-        Xc = X[:, a:z]
-        s = np.sign(Xc[np.argmax(np.abs(Xc), axis=0), np.arange(Xc.shape[1])])
-        s[s == 0] = 1.0
-        Xc *= s
-
-    parallel.run(fix, parallel.row_parts(X.shape[1], chunk))  # ranges of columns
-    return X
-
-
-def _residuals(L, B, lam, X, chunk=16, b_norms=False):
-    """Normwise backward errors, computed in column chunks (no n x k temporaries), the chunks
-    shared out among threads (each column is computed whole by one thread); with ``b_norms``, also
-    the columns' B-norms squared ``xᵀ B x`` (from the same products)."""
-    nL = abs(L).sum(axis=0).max()
-    nB = abs(B).sum(axis=0).max()
-    L, B = sp.csr_matrix(L), sp.csr_matrix(B)
-
-    def backward_errors(a, z):
-        Xc = np.ascontiguousarray(X[:, a:z])
-        BXc = B @ Xc
-        R = L @ Xc - BXc * lam[a:z]
-        res = np.linalg.norm(R, axis=0) / ((nL + np.abs(lam[a:z]) * nB) * np.linalg.norm(Xc, axis=0) + 1e-300)
-        return res, np.einsum("ij,ij->j", Xc, BXc)
-
-    parts = parallel.run(backward_errors, parallel.row_parts(X.shape[1], chunk))
-    res = np.concatenate([p[0] for p in parts])
-    return (res, np.concatenate([p[1] for p in parts])) if b_norms else res
-
-
-def _b_orthonormalize(X, B):
-    """Make Xᵀ B X = I exactly (to rounding) with one Cholesky of the k x k Gram matrix."""
-    G = X.T @ (B @ X)
-    G = (G + G.T) / 2
-    try:
-        C = np.linalg.cholesky(G)
-    except np.linalg.LinAlgError as e:
-        raise SolverError("the eigenvectors are not linearly independent (eigensolver failure)") from e
-    return sla.solve_triangular(C, X.T, lower=True).T
-
-
-def _weyl_gap(B):
-    """Weyl's law: λ_j ≈ 4π j / area, so 4π / area is the expected gap between eigenvalues."""
-    return 4 * np.pi / float(B.sum())
-
-
-def _shift(B):
-    # a hundredth of the first gap below 0
-    return -0.01 * _weyl_gap(B)
-
-
-def all_zero(eigenvalues, mass):
+def all_zero(eigenvalues: ArrayLike, mass: sp.spmatrix) -> bool:
     """Whether every eigenvalue is 0 to rounding (below 1e-8 of Weyl's gap ``4π / 1ᵀ B 1``): the
     spectrum then holds only the constants of the mesh's components."""
-    return float(np.max(eigenvalues)) <= 1e-8 * _weyl_gap(mass)
+    return float(np.max(eigenvalues)) <= 1e-8 * weyl_gap(mass)
 
 
-def _cache_key(V, F, k, mass, method, tol=1e-8, sigma=None, seed=0, block=8):
-    """Hash of everything that changes a spectrum: the geometry, k, the mass, and the solver
-    settings (a tol=1e-2 answer must never be served to a tol=1e-10 call)."""
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(V, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(F, dtype=np.int64).tobytes())
-    h.update(f"{V.shape}{F.shape}|{k}|{mass}|{method}|{float(tol)!r}|{sigma!r}|{seed}|{block}|"
-             f"{_CACHE_VERSION}".encode())
-    return h.hexdigest()[:32]
 
 
-def _choose_method(method, r, k):
-    """"dense", "arpack" or "lanczos" for r vertices and k eigenpairs (see eigensolve)."""
-    many_k = k >= LANCZOS_MANY_K[0] and r >= LANCZOS_MANY_K[1]
-    iterative = "lanczos" if r >= LANCZOS_MIN_N or many_k else "arpack"
-    if method == "auto":
-        method = "dense" if (r <= DENSE_MAX_N or k > r // 2) and r <= DENSE_LIMIT_N else iterative
-    if k >= r - 1:
-        method = "dense"  # ARPACK and the block Lanczos need k < n - 1
-    if method == "dense" and r > DENSE_LIMIT_N:
-        raise MeshError(f"a dense eigensolve of {r} vertices would need about "
-                        f"{2 * 8 * r * r / 2**30:.0f} GiB: ask for k < {r - 1} eigenpairs with "
-                        "method='auto' (iterative), or use a smaller mesh")
-    return method
-
-
-def _solve_arpack(L, B, k, sigma, backend, seed):
-    # machine precision: a looser ARPACK tolerance was seen to miss copies of multiple eigenvalues
-    t0 = time.perf_counter()
-    fac = factorize(L - sigma * B, backend=backend)
-    t1 = time.perf_counter()
-    n = L.shape[0]
-    op = spla.LinearOperator((n, n), matvec=fac.solve, dtype=np.float64)
-    ncv = min(n - 1, max(2 * k + 1, 20))
-    try:
-        lam, X = spla.eigsh(L, k=k, M=B, sigma=sigma, which="LM", OPinv=op, ncv=ncv, tol=0.0,
-                            v0=np.random.default_rng(seed).standard_normal(n), maxiter=max(1000, 20 * k))
-    except spla.ArpackNoConvergence as e:
-        raise ConvergenceError(f"the eigensolver did not converge for k={k}: {e}") from e
-    return lam, X, fac.backend, t1 - t0, time.perf_counter() - t1
-
-
-def _solve_lanczos(L, B, k, sigma, backend, seed, tol, block):
-    # L, B come renumbered in CSR (_permuted): the format of fast products with blocks of vectors
-    t0 = time.perf_counter()
-    fac = factorize(L - sigma * B, backend=backend)
-    t1 = time.perf_counter()
-    used = fac.backend
-    buf = {}  # block_lanczos keeps no solution past the next solve: one buffer per shape serves all
-
-    # F821 silenced in solve: ruff sees the `del buf, fac` below, after solve's last call
-    def solve(Y):
-        if Y.shape not in buf:  # noqa: F821 - deleted after the last call
-            buf[Y.shape] = np.empty(Y.shape)  # noqa: F821 - deleted after the last call
-        return fac.solve(Y, out=buf[Y.shape])  # noqa: F821 - deleted after the last call
-
-    _, Xv, info = block_lanczos(L, B, solve, k, sigma, block=block, tol=max(tol, 1e-14), seed=seed,
-                                refine=False)
-    del buf, solve
-    del fac  # free the factorization before the Rayleigh-Ritz (peak memory)
-    lam, X = rayleigh_ritz(L, B, Xv, overwrite=True)  # in the memory of the basis
-    log.info("block Lanczos: %s", info)
-    return lam, X, used, t1 - t0, time.perf_counter() - t1
-
-
-def _permuted(A, perm):
-    """``A[perm][:, perm]`` as CSR (the format of the products with blocks of vectors)."""
-    return sp.csr_matrix(sp.csr_matrix(A)[perm][:, perm])
-
-
-def _unpermuted(X, perm, chunk=32):
-    """Rows of X back to the original numbering: ``out[perm] = X``, by column chunks (no n x k
-    temporary beyond the result) shared out among threads."""
-    out = np.empty(X.shape, order="F")
-    parallel.run(lambda a, z: out.__setitem__((perm, slice(a, z)), X[:, a:z]),
-                 parallel.row_parts(X.shape[1], chunk))  # ranges of columns
-    return out
-
-
-def _solve_dense(L, B, k):
-    t0 = time.perf_counter()
-    # up to DENSE_MAX_N the BLAS gains nothing from threads (measured), and when another process
-    # keeps a core busy OpenBLAS' spinning threads made a 1152-vertex solve 90x slower: one thread
-    small = L.shape[0] <= DENSE_MAX_N
-    with parallel.blas_one_thread() if small else contextlib.nullcontext():
-        lam, X = sla.eigh(L.toarray(), B.toarray(), subset_by_index=[0, k - 1])
-    return lam, X, "dense", 0.0, time.perf_counter() - t0
-
-
-def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache=None,
-               method="auto", tol=1e-8, seed=0, block=8):
+def eigensolve(mesh: MeshLike, k: int = 100, mass: str = "consistent", sigma: float | None = None,
+               backend: str = "auto", cache: PathLike | bool | None = None, method: str = "auto",
+               tol: float = 1e-8, seed: int = 0, block: int = 8) -> Spectrum:
     """Smallest ``k`` eigenpairs of the linear-FEM Laplace-Beltrami operator, ``L x = λ B x``.
 
     Parameters
@@ -636,7 +302,7 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     backend : {"auto", "cholmod", "cholespy", "superlu"}
         Factorization backend (see :func:`o3dheat.spectral.linalg.factorize`).
     cache : None, True, str or Path
-        On-disk cache folder (True: :func:`default_cache_dir`), keyed by a hash of ``V``, ``F``,
+        On-disk cache folder (True: :func:`o3dheat.spectral.cache.default_cache_dir`), keyed by a hash of ``V``, ``F``,
         ``k``, ``mass`` and ``method``: a repeated call returns at once.
     method : str
         One of :data:`METHODS`. "lanczos": block shift-invert Lanczos
@@ -685,8 +351,8 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         raise MeshError(f"k={k} exceeds the number of (referenced) vertices {r}: ask for k <= {r}")
     if sigma is not None and not (np.isfinite(sigma) and sigma < 0):
         raise MeshError(f"sigma must be a negative number (L - sigma B must be positive definite), got {sigma}")
-    cache_dir = None if cache in (None, False) else (default_cache_dir() if cache is True else Path(cache))
-    key = _cache_key(prep.V, prep.F, k, mass, method, tol, sigma, seed, block) if cache_dir is not None else None
+    cache_dir = disk_folder(cache)
+    key = spectrum_key(prep.V, prep.F, k, mass, method, tol, sigma, seed, block) if cache_dir is not None else None
     # the area-weighted problems are solved at a power-of-two scale near 1 (exact: λ = λ'/u²,
     # X = X'/u, B = u² B'): iterative solvers lose digits when the units are far from the mesh's
     # size (micrometres, georeferenced metres); ordinary meshes (extent 1e-6..1e6) have u = 1
@@ -700,8 +366,8 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
     if sigma is not None:
         sigma = sigma * u * u
     t_asm = time.perf_counter() - t0
-    cached = _cache_load(cache_dir, key) if key else None
-    if cached is not None and not _cache_valid(cached, L.shape[0], k):
+    cached = load_entry(cache_dir, key) if key else None
+    if cached is not None and not entry_valid(cached, L.shape[0], k):
         log.warning("the cached spectrum %s does not solve this eigenproblem (tampered or corrupt): "
                     "recomputing", key)
         cached = None
@@ -710,18 +376,16 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
         timings = {"assemble": t_asm, "factorize": 0.0, "solve": 0.0, "cache": True}
     else:
         try:
-            lam, X, used, s, res, timings = _solve(L, B, k, method, sigma, backend, seed, tol, block)
+            lam, X, used, s, res, timings = solve_eigenproblem(L, B, k, method, sigma, backend, seed, tol, block)
         except MemoryError as e:  # past the estimate: still an error naming the problem, not a crash
             raise OutOfMemory(f"out of memory solving for {k} eigenpairs on {len(V)} vertices ({e}): ask for "
                               "fewer eigenpairs, or decimate the mesh") from e
         timings = {"assemble": t_asm, **timings}
         if key:
-            _cache_save(cache_dir, key, lam, X, used, s, res)
+            save_entry(cache_dir, key, lam, X, used, s, res)
     if u != 1.0:
         lam, X, s, B, areas = lam / (u * u), X / u, s / (u * u), B * (u * u), areas * (u * u)
     if all_zero(lam, B):  # only constants per component: say why
-        from scipy.sparse.csgraph import connected_components
-
         c = connected_components(L, directed=False)[0]
         log.warning("all %d eigenvalues are 0: the mesh has %d connected components, each with a constant "
                     "eigenfunction of eigenvalue 0; ask for k > %d to get non-constant ones", k, c, c)
@@ -736,7 +400,7 @@ def eigensolve(mesh, k=100, mass="consistent", sigma=None, backend="auto", cache
                     faces=prep.keep[F], inverse_mass_bound=bound)
 
 
-def inverse_mass_bound(B, mass):
+def inverse_mass_bound(B: sp.spmatrix, mass: str) -> np.ndarray | None:
     """An upper bound of ``diag(B⁻¹)`` for a mass of :data:`o3dheat.spectral.fem.MASS_KINDS` (or "given"):
     ``1 / B_ii`` for a diagonal mass (exact), ``4 / (B 1)_i`` for the consistent one (each
     element's mass ``|t|/12 (I + 1 1ᵀ)`` is at least a quarter of its lumped mass ``|t|/3 I``);
@@ -761,126 +425,10 @@ def inverse_mass_bound(B, mass):
     return None
 
 
-def peak_memory(n, k=100, block=8):
-    """Estimated peak memory of an iterative :func:`eigensolve`, in bytes.
 
-    The Lanczos basis (``max(2k, k + 4 block) + block`` vectors of ``n`` float64) plus 2 KiB per
-    vertex for the Cholesky factor, the operators and the blocks of vectors, as measured on a mesh
-    of 1M vertices (``scripts/bench_spectrum.py``: resident memory added while solving peaked at
-    3.4 GiB for k = 100, 6.4 GiB for k = 300). A mesh fits when this is below the
-    memory available; eigensolve refuses with :class:`o3dheat.spectral.memory.OutOfMemory` otherwise.
-
-    Parameters
-    ----------
-    n : int
-        Vertices.
-    k, block : int
-        As for :func:`eigensolve`.
-
-    Returns
-    -------
-    int
-
-    Examples
-    --------
-    >>> round(peak_memory(1_000_000, 100) / 2**30, 1), round(peak_memory(1_000_000, 300) / 2**30, 1)
-    (3.5, 6.4)
-    """
-    basis = min(n, max(2 * k, k + 4 * block)) + block
-    return int(n * (8 * basis + 2048))
-
-
-def _solve(L, B, k, method, sigma, backend, seed, tol, block):
-    """Smallest k eigenpairs of L x = λ B x: (λ, X B-orthonormal with fixed signs, backend, σ,
-    residuals, timings).
-
-    The chosen method falls back when it fails to converge (the block Lanczos on tiny meshes,
-    whose Krylov space is nearly exhausted by a 2k-vector basis; ARPACK on hard clusters):
-    "lanczos" -> "arpack" -> "dense", the last only where a dense solve fits in memory."""
-    r = L.shape[0]
-    method = _choose_method(method, r, k)
-    chain = {"lanczos": ["lanczos", "arpack", "dense"], "arpack": ["arpack", "dense"]}.get(method, [method])
-    chain = [m for m in chain if m != "dense" or r <= DENSE_LIMIT_N]
-    if chain[0] == "dense":
-        check_memory(3 * 8 * r * r, f"a dense eigensolve of {r} vertices", "ask for fewer eigenpairs (iterative)")
-    else:
-        check_memory(peak_memory(r, k, block),
-                     f"the eigensolve of {k} eigenpairs on {r} vertices",
-                     "ask for fewer eigenpairs, or decimate the mesh")
-        free = available_memory()
-        if free is not None and 3 * 8 * r * r > free:
-            chain = [m for m in chain if m != "dense"]
-    for i, m in enumerate(chain):
-        try:
-            return _solve_by(L, B, k, m, sigma, backend, seed, tol, block)
-        except ConvergenceError as e:
-            if i + 1 == len(chain):
-                raise
-            log.warning("eigensolver %r failed (%s): falling back to %r", m, e, chain[i + 1])
-
-
-def _canonical_bases(lam, X, B, scale, rel=1e-9):
-    """In place: the basis of each cluster of equal eigenvalues (to ``rel`` of ``scale``, the
-    eigensolver's accuracy: numerically one eigenspace) made independent of how the solver chose
-    it: ``X_c P`` with ``P`` the orthogonal polar factor of ``X_cᵀ B G``, ``G`` a fixed
-    pseudo-random block. Any B-orthonormal basis ``X_c Q`` of the same space gives the same result
-    (to rounding): ``polar(Qᵀ M) = Qᵀ polar(M)``. Four concurrent dense eigensolves (threads
-    change the BLAS's rounding) rotated the sphere's multiple eigenvectors arbitrarily before."""
-    lam = np.asarray(lam)
-    tied = np.diff(lam) <= rel * np.maximum(np.abs(lam[1:]), scale)  # tied[i]: λ_i and λ_{i+1} one cluster
-    if not tied.any():  # simple eigenvalues only: nothing to do (no copy, no conversion)
-        return X
-    B = sp.csr_matrix(B)
-    starts = np.flatnonzero(np.r_[True, ~tied])
-    for i, j in zip(starts, np.r_[starts[1:], len(lam)], strict=True):
-        if j - i > 1:
-            G = np.random.default_rng(20261201 + j - i).standard_normal((X.shape[0], j - i))
-            U, _, Vt = np.linalg.svd(X[:, i:j].T @ (B @ G))
-            X[:, i:j] = X[:, i:j] @ (U @ Vt)
-    return X
-
-
-def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
-    B_in = B
-    use_dense = method == "dense"
-    s = float("nan") if use_dense else (_shift(B) if sigma is None else float(sigma))
-    perm, t_perm = None, 0.0
-    if use_dense:
-        lam, X, used, t_fac, t_sol = _solve_dense(L, B, k)
-    else:
-        # renumber the vertices for memory locality (reverse Cuthill-McKee): the products with L and
-        # B, which read rows of blocks of vectors at the neighbours' indices, are 2x faster on meshes
-        # stored in a scattered order (decimated, remeshed); the results are numbered back
-        t0 = time.perf_counter()
-        perm = reverse_cuthill_mckee(sp.csr_matrix(L), symmetric_mode=True)
-        L, B = _permuted(L, perm), _permuted(B, perm)
-        t_perm = time.perf_counter() - t0
-        if method == "arpack":
-            lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, seed)
-        else:
-            lam, X, used, t_fac, t_sol = _solve_lanczos(L, B, k, s, backend, seed, tol, block)
-    t0 = time.perf_counter()
-    order = np.argsort(lam, kind="stable")
-    if np.any(order != np.arange(len(lam))):
-        lam, X = lam[order], X[:, order]
-    if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(X))):
-        raise SolverError("the eigensolver returned non-finite values")
-    if method != "lanczos":  # its Rayleigh-Ritz already made X B-orthonormal
-        X = _b_orthonormalize(X, B)
-    lam = np.maximum(lam, 0.0)
-    res = _residuals(L, B, lam, X)
-    if perm is not None:
-        X = _unpermuted(X, perm)
-    X = _fix_signs(X)  # in the caller's numbering: "first entry on ties" is well defined there
-    # after the signs: a multiple eigenvalue's canonical basis has its own signs (the polar factor
-    # is unique), where "largest entry" ties to rounding on a symmetric mesh
-    X = _canonical_bases(lam, X, B_in, _weyl_gap(B_in))
-    t_sol += t_perm + time.perf_counter() - t0
-    return lam, X, used, s, res, {"factorize": t_fac, "solve": t_sol, "cache": False}
-
-
-def eigensolve_operators(L, B, k=100, sigma=None, backend="auto", method="auto", tol=1e-8, seed=0,
-                         block=8):
+def eigensolve_operators(L: sp.spmatrix, B: sp.spmatrix, k: int = 100, sigma: float | None = None,
+                         backend: str = "auto", method: str = "auto", tol: float = 1e-8, seed: int = 0,
+                         block: int = 8) -> Spectrum:
     """The smallest k eigenpairs of ``L x = λ B x`` for operators built elsewhere.
 
     For Laplacians that do not come from a triangle mesh, for example robust-laplacian's
@@ -918,7 +466,7 @@ def eigensolve_operators(L, B, k=100, sigma=None, backend="auto", method="auto",
     tol, seed, block = _check_settings(tol, seed, block)
     if k > n:
         raise MeshError(f"k={k} exceeds the size {n}")
-    lam, X, used, s, res, timings = _solve(L, B, k, method, sigma, backend, seed, tol, block)
+    lam, X, used, s, res, timings = solve_eigenproblem(L, B, k, method, sigma, backend, seed, tol, block)
     areas = np.asarray(B.sum(axis=1)).ravel()
     return Spectrum(lam, X, L, B, "given", areas, used, res, s, timings,
                     inverse_mass_bound=inverse_mass_bound(B, "given"))
@@ -941,31 +489,3 @@ def _check_k(k):
     if k <= 0:
         raise MeshError(f"k must be at least 1, got {k}")
     return int(k)
-
-
-def _cache_load(folder, key):
-    """``(eigenvalues, eigenvectors, backend, sigma, residuals)`` of a signed entry, else None."""
-    z = _cache.cache_load(folder, key)
-    if z is None:
-        return None
-    try:
-        return (z["eigenvalues"], z["eigenvectors"], str(z["backend"]), float(z["sigma"]), z["residuals"])
-    except (KeyError, ValueError, TypeError) as e:
-        log.warning("ignoring the cache entry %s (%s)", key, e)
-        return None
-
-
-def _cache_valid(cached, r, k):
-    """A signed entry (o3dheat's own write, :mod:`o3dheat.spectral._cache`) is used if it has the
-    shapes of this problem, finite values and ascending eigenvalues (O(n k)): its residuals were
-    checked when it was computed."""
-    lam, X, _, _, res = cached
-    if lam.shape != (k,) or X.shape != (r, k) or lam.dtype != np.float64 or X.dtype != np.float64:
-        return False
-    return bool(np.all(np.isfinite(lam)) and np.all(np.isfinite(X)) and np.all(np.diff(lam) >= 0)
-                and lam[0] >= 0 and res.shape == (k,))
-
-
-def _cache_save(folder, key, lam, X, backend, sigma, res):
-    _cache.cache_save(folder, key, {"eigenvalues": lam, "eigenvectors": X, "backend": np.array(backend),
-                                             "sigma": np.array(sigma), "residuals": res}, cache_max_bytes())

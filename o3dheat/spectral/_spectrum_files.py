@@ -1,7 +1,12 @@
-"""Spectra on disk: the signed entries of the spectrum cache, and the self-contained ``.npz`` files
-of :meth:`o3dheat.Spectrum.save` (entry points: :func:`cache_load`, :func:`cache_save`,
-:func:`prune`; written with :func:`o3dheat.io.atomic_write`).
+"""Spectra on disk: the signed entries of the spectrum cache, and the ``.npz`` files of :meth:`o3dheat.Spectrum.save`.
 
+Entry points: :func:`cache_load`, :func:`cache_save`, :func:`prune` (the signed entries read and
+written by :mod:`o3dheat.spectral.cache`), :func:`spectrum_arrays`, :func:`read_spectrum` and
+:func:`check_loaded` (the self-contained files of :meth:`~o3dheat.Spectrum.save` and
+:meth:`~o3dheat.Spectrum.load`); written with :func:`o3dheat.io.atomic_write`.
+
+Notes
+-----
 Only o3dheat's own writes are read back from a cache folder: every entry carries a keyed BLAKE2b
 signature of its name and arrays, made with a secret kept in the folder (``.o3dheat-key``, 32
 random bytes, readable by its owner only, created once). A file placed in the folder by another
@@ -27,6 +32,9 @@ import numpy as np
 
 from o3dheat.errors import MeshError
 from o3dheat.io import atomic_write
+
+from . import fem
+from ._solvers import residuals
 
 log = logging.getLogger("o3dheat")
 
@@ -222,3 +230,42 @@ def read_spectrum(path):
     if fields["eigenvectors"].ndim != 2 or fields["eigenvalues"].ndim != 1 or fields["eigenvalues"].size == 0:
         raise MeshError(f"{path}: eigenvectors must be a matrix and eigenvalues a non-empty vector")
     return fields
+
+
+def check_loaded(s, path):
+    """The checks of :meth:`o3dheat.Spectrum.load` (a MeshError naming the first that fails)."""
+    lam, X, L, B = s.eigenvalues, s.eigenvectors, s.stiffness, s.mass
+    n, k = X.shape
+    shapes = {"stiffness": L.shape, "mass": B.shape}
+    for name, shape in shapes.items():
+        if shape != (n, n):
+            raise MeshError(f"{path}: {name} is {shape[0]} x {shape[1]}, the eigenvectors have {n} rows")
+    for name, a in (("eigenvalues", lam), ("residuals", s.residuals), ("areas", s.areas)):
+        if a.shape != ((k,) if name != "areas" else (n,)):
+            raise MeshError(f"{path}: {name} has shape {a.shape}")
+    bound = s.inverse_mass_bound
+    if bound is not None and np.shape(bound) != (n,):
+        raise MeshError(f"{path}: inverse_mass_bound has shape {np.shape(bound)}, not ({n},)")
+    if not all(np.all(np.isfinite(a)) for a in (lam, X, L.data, B.data, s.residuals, s.areas)
+               + (() if bound is None else (bound,))):
+        raise MeshError(f"{path}: non-finite values")
+    if np.any(s.areas < 0) or (bound is not None and np.any(bound < 0)):
+        raise MeshError(f"{path}: negative areas or inverse-mass bound")
+    if s.mass_kind != "given":
+        try:
+            fem.check_mass_kind(s.mass_kind)
+        except MeshError as e:
+            raise MeshError(f"{path}: {e}") from None
+    if np.any(np.diff(lam) < 0) or lam[0] < 0:
+        raise MeshError(f"{path}: the eigenvalues are not ascending and >= 0")
+    if s.faces is not None and (s.faces.ndim != 2 or s.faces.shape[1] != 3 or s.faces.size
+                                and (s.faces.min() < 0 or s.faces.max() >= n)):
+        raise MeshError(f"{path}: faces of shape {s.faces.shape} do not index the {n} vertices")
+    res = residuals(L, B, lam, X)
+    if res.max() > 1e-2 or np.any(res > np.maximum(10 * s.residuals, 1e-12)):
+        raise MeshError(f"{path}: the eigenpairs do not solve L x = λ B x for the stored operators "
+                        f"(residual {res.max():.1e}, stored {s.residuals.max():.1e})")
+    G = X.T @ (B @ X)
+    G[np.diag_indices(k)] -= 1.0
+    if np.abs(G).max() > 1e-6:
+        raise MeshError(f"{path}: the eigenvectors are not B-orthonormal (|XᵀBX - I| = {np.abs(G).max():.1e})")
