@@ -19,11 +19,12 @@ from o3dheat._jit import compiled
 
 log = logging.getLogger("o3dheat")
 
+#: the loops of Surface, critical_points and persistence (those warm_up loads); tracking adds ``climb``
 LOOPS = ("sorted_half_edges", "number_edges", "fans", "classify", "arcs", "sweeps")
 
 
 def kernel(name):
-    """The compiled version of the loop ``name`` of this module (one of :data:`LOOPS`)."""
+    """The compiled version of the loop ``name`` of this module (one of :data:`LOOPS`, or ``climb``)."""
     return compiled(globals()[name])
 
 
@@ -392,3 +393,25 @@ def sweeps(keys0, keys1, shift, kind, left):
                 nroot += 1
         out.append((cre[:p], des[:p], roots))
     return out[0][0], out[0][1], out[0][2], out[1][0], out[1][1], out[1][2]
+
+
+def climb(f, ptr, adj, starts, up):
+    """From each start, steepest ascent (``up``) or descent in the order of ``(f, vertex index)``:
+    each step to the highest (lowest) neighbour while it is higher (lower); the vertex it stops on."""
+    out = starts.copy()
+    for s in range(len(starts)):
+        v = starts[s]
+        while True:
+            best = v
+            for k in range(ptr[v], ptr[v + 1]):
+                u = adj[k]
+                if up:
+                    if f[u] > f[best] or (f[u] == f[best] and u > best):
+                        best = u
+                elif f[u] < f[best] or (f[u] == f[best] and u < best):
+                    best = u
+            if best == v:
+                break
+            v = best
+        out[s] = v
+    return out

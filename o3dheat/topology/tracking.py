@@ -1,51 +1,37 @@
-"""Critical points across scales: which critical point of Φ_t f at one scale is which at the next
-(entry point: :func:`track_critical_points`, returning :class:`Tracks`).
+"""Critical points followed across scales: :func:`track_critical_points`, returning :class:`Tracks`.
 
 The paper's scale spaces (§3): as t grows, critical points of the smoothed field disappear in
 pairs, an extremum with a saddle. Tracking follows each one from scale to scale and records when
 it ends and why.
 
-**Matching rule** (between consecutive scales ``i`` and ``i + 1``):
-
-* *Extrema follow the gradient flow.* A maximum ``v`` of ``F[:, i]`` goes to the maximum of
-  ``F[:, i + 1]`` reached by steepest ascent from ``v`` (each vertex to its highest neighbour in
-  the order of values, ties by vertex index as everywhere in :mod:`o3dheat.topology`); minima by
-  steepest descent. When several reach the same one, the most persistent at scale ``i`` continues
-  (then the higher, for maxima; the lower, for minima) and the others end. An ascent that ends on
-  a vertex that is not a maximum (a boundary vertex above its neighbours is regular) ends the
-  track.
-* *Saddles* have no flow to follow: those paired (persistence, scale ``i``) with an extremum that
-  ends are taken to end with it; the others are matched to the saddles of scale ``i + 1`` by a
-  minimum-cost assignment of Euclidean distances, pairs farther apart than ``radius`` left
-  unmatched.
-* *Events* between ``i`` and ``i + 1``: ``"cancel"`` (an extremum track and a saddle track end
-  together, the saddle its persistence partner when possible), ``"creation"`` (tracks that begin
-  together: an extremum and a saddle; under the heat flow on a surface they do occur, mostly with a
-  persistence far below ``‖F_i − F_{i+1}‖∞``; a newborn extremum a little beyond an old neighbour
-  takes over the old one's persistence), ``"split"`` /
-  ``"merge"`` (a saddle of multiplicity ``k`` becomes ``k`` saddles or the reverse: a track begins
-  or ends next to a continuing saddle whose multiplicity changed), and ``"death"`` / ``"birth"``
-  for what nothing else explains.
-
-Every critical vertex at every scale lies on exactly one living track, so the living tracks of a
-scale are its critical points and ``M − s + m = χ`` holds at every scale (saddles with their
+Notes
+-----
+Between scales ``i`` and ``i + 1``, extrema follow the gradient flow of ``F[:, i + 1]`` (steepest
+ascent for maxima, descent for minima, ties by vertex index as everywhere in
+:mod:`o3dheat.topology`; of several reaching the same one the most persistent at scale ``i``
+continues); saddles paired (persistence, scale ``i``) with an extremum that ends end with it, the
+others are matched to the saddles of scale ``i + 1`` by a minimum-cost assignment of distances
+within ``radius``. Events: ``"cancel"``, ``"creation"``, ``"split"`` / ``"merge"`` (a saddle's
+multiplicity changes), ``"death"`` / ``"birth"``. Every critical vertex at every scale lies on
+exactly one living track, so ``M − s + m = χ`` holds at every scale (saddles with their
 multiplicity). On a closed surface an extremum whose persistence exceeds ``2‖F_i − F_{i+1}‖∞``
-continues, its value moving by at most ``‖F_i − F_{i+1}‖∞`` (derived and tested in
-``tests/test_tracking.py``); a continuing track's persistence can jump where a pairing swaps (two
-extrema whose values cross). Limits: a fast-moving saddle (coarse scales, ``radius`` too small) is recorded as a
-death and a birth rather than a move; a matching is only as good as the grid of scales is fine.
+continues, its value moving by at most ``‖F_i − F_{i+1}‖∞`` (tested in
+``tests/topology/test_tracking.py``). The rule in full, the events, what is guaranteed and what is
+not, the limits and the cost: ``docs/details/topology.md`` (Tracking).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from o3dheat import checks
-from o3dheat._jit import compiled
 from o3dheat.errors import MeshError
+from o3dheat.typing import FieldLike, MeshLike, TimesLike
 
+from . import _loops
 from .critical import critical_points
 from .persistence import persistence
 from .surface import Surface
@@ -99,11 +85,11 @@ class Tracks:
     _source: tuple | None = field(default=None, repr=False)  # (Surface, F, {scale: (vertices, persistence)})
     _persistence: np.ndarray | None = field(default=None, repr=False)
 
-    def __len__(self):
+    def __len__(self) -> int:
         return len(self.kind)
 
     @property
-    def persistence(self):
+    def persistence(self) -> np.ndarray:
         """(p, T) float64: see :class:`Tracks` (computed on first access, then kept).
 
         Examples
@@ -126,7 +112,7 @@ class Tracks:
         return dict(self.__dict__)
 
     @property
-    def first(self):
+    def first(self) -> np.ndarray:
         """(p,) int64: the first scale index each track lives at.
 
         Examples
@@ -136,7 +122,7 @@ class Tracks:
         return np.argmax(self.vertex >= 0, axis=1)
 
     @property
-    def last(self):
+    def last(self) -> np.ndarray:
         """(p,) int64: the last scale index each track lives at.
 
         Examples
@@ -147,7 +133,7 @@ class Tracks:
         return T - 1 - np.argmax(self.vertex[:, ::-1] >= 0, axis=1)
 
     @property
-    def lifetime(self):
+    def lifetime(self) -> np.ndarray:
         """(p,) float64: ``times[last] − times[first]`` (``inf`` for tracks alive at the last scale).
 
         Examples
@@ -158,7 +144,7 @@ class Tracks:
         return np.where(self.last == len(self.times) - 1, np.inf, out)
 
     @property
-    def positions(self):
+    def positions(self) -> np.ndarray:
         """(p, T, 3) float64: the track's position at each scale (NaN where it does not live).
 
         Examples
@@ -172,7 +158,7 @@ class Tracks:
         out[alive] = self.positions_of[self.vertex[alive]]
         return out
 
-    def features(self, scale=-1):
+    def features(self, scale: int = -1) -> np.ndarray:
         """The critical vertices of the first field whose tracks live to ``scale`` (an index into
         :attr:`times`, default the last): the lifetime criterion of feature-driven approximation
         (beside δ-persistence), A for :func:`o3dheat.feature_driven`.
@@ -192,7 +178,7 @@ class Tracks:
         keep = (self.first == 0) & (self.last >= scale)
         return np.unique(self.vertex[keep, 0])
 
-    def subset(self, keep):
+    def subset(self, keep: ArrayLike) -> Tracks:
         """The tracks ``keep`` (a (p,) bool mask), the events among them renumbered (a persistence
         not yet computed is computed from the subset's vertices; one computed already is sliced).
 
@@ -205,8 +191,6 @@ class Tracks:
         >>> tr.subset(tr.kind != "saddle").kind.tolist()
         ['minimum', 'maximum']
         """
-        import dataclasses
-
         keep = np.asarray(keep, bool)
         if keep.all():
             return self
@@ -214,10 +198,10 @@ class Tracks:
         events = [dict(e, tracks=[int(new[i]) for i in e["tracks"]]) for e in self.events
                   if keep[list(e["tracks"])].all()]
         pers = None if self._persistence is None else self._persistence[keep]
-        return dataclasses.replace(self, kind=self.kind[keep], vertex=self.vertex[keep],
-                                   multiplicity=self.multiplicity[keep], events=events, _persistence=pers)
+        return replace(self, kind=self.kind[keep], vertex=self.vertex[keep],
+                       multiplicity=self.multiplicity[keep], events=events, _persistence=pers)
 
-    def euler_characteristic(self, scale):
+    def euler_characteristic(self, scale: int) -> int:
         """``M − s + m`` of the living tracks at ``scale`` (saddles with their multiplicity).
 
         Examples
@@ -234,7 +218,8 @@ class Tracks:
                 f"{counts['maximum']} maxima; {len(self.times)} scales; {len(self.events)} events)")
 
 
-def track_critical_points(mesh, F, t, radius=None):
+def track_critical_points(mesh: MeshLike | Surface, F: FieldLike, t: TimesLike,
+                          radius: float | None = None) -> Tracks:
     """Follow the critical points of fields at increasing times across the scales.
 
     Parameters
@@ -286,6 +271,38 @@ def track_critical_points(mesh, F, t, radius=None):
     [('cancel', 6, ['maximum', 'saddle'])]
     """
     S = Surface.of(mesh)
+    times, Fa, V, radius = _checked(S, F, t, radius)
+    T = len(times)
+    diagrams = _Diagrams(S, Fa)
+    cur = _Scale(critical_points(S, Fa[:, 0]))
+    ids = {k: np.arange(len(cur.v[k])) + o for k, o in zip(("minimum", "maximum", "saddle"),
+                                                          np.cumsum([0, len(cur.v["minimum"]), len(cur.v["maximum"])]),
+                                                          strict=True)}
+    p = sum(len(x) for x in ids.values())
+    kinds = [k for k in ("minimum", "maximum", "saddle") for _ in range(len(ids[k]))]
+    alive = [_living(ids, cur)]
+    events = []
+    for i in range(T - 1):
+        nxt = _Scale(critical_points(S, Fa[:, i + 1]))
+        new_of, ended = _follow_extrema(S, cur, nxt, Fa[:, i], Fa[:, i + 1], diagrams, i)
+        partner = diagrams(i)[2] if ended else {}
+        new_of["saddle"], gone = _follow_saddles(V, cur, nxt, ended, partner, radius)
+        ended += gone
+        new_ids, born, p = _number(new_of, ids, nxt, p, kinds)
+        events += _events(i, ended, born, ids, new_ids, cur, nxt, new_of["saddle"], partner, V, radius)
+        alive.append(_living(new_ids, nxt))
+        cur, ids = nxt, new_ids
+    vertex = np.full((p, T), -1, np.int64)
+    mult = np.zeros((p, T), np.int64)
+    for j, (tid, v, m) in enumerate(alive):
+        vertex[tid, j], mult[tid, j] = v, m
+    kind = np.array(kinds, dtype=object)
+    return Tracks(kind, vertex, mult, times, events, V, (S, Fa, diagrams.known()))
+
+
+def _checked(S, F, t, radius):
+    """The checked arguments of :func:`track_critical_points`: (times, fields, positions or None,
+    radius)."""
     times = checks.times(t)
     times = np.atleast_1d(times)
     if np.any(np.diff(times) <= 0):
@@ -298,82 +315,90 @@ def track_critical_points(mesh, F, t, radius=None):
         radius = 10 * (np.linalg.norm(V[S.E[:, 0]] - V[S.E[:, 1]], axis=1).mean() if V is not None else 1.0)
     elif not (np.isfinite(radius) and radius > 0):
         raise MeshError(f"radius must be a positive number, got {radius!r}")
-    T = len(times)
-    diagrams = {}  # scale -> (critical vertices sorted, their persistence), computed where needed
+    return times, Fa, V, radius
 
-    def diagram(i):
-        if i not in diagrams:
-            dg = persistence(S, Fa[:, i])
-            diagrams[i] = _vertex_persistence(dg) + (dict(zip(dg.pairs[:, 0].tolist(), dg.pairs[:, 1].tolist(),
-                                                               strict=True)),)
-        return diagrams[i]
 
-    cur = _Scale(critical_points(S, Fa[:, 0]))
-    ids = {k: np.arange(len(cur.v[k])) + o for k, o in zip(("minimum", "maximum", "saddle"),
-                                                          np.cumsum([0, len(cur.v["minimum"]), len(cur.v["maximum"])]),
-                                                          strict=True)}
-    p = sum(len(x) for x in ids.values())
-    kinds = [k for k in ("minimum", "maximum", "saddle") for _ in range(len(ids[k]))]
-    alive = [(np.concatenate([ids[k] for k in KINDS]), np.concatenate([cur.v[k] for k in KINDS]),
-              np.concatenate([cur.m[k] for k in KINDS]))]
-    events = []
-    for i in range(T - 1):
-        nxt = _Scale(critical_points(S, Fa[:, i + 1]))
-        f_now, f_next = Fa[:, i], Fa[:, i + 1]
-        new_ids = {}
-        new_of = {}  # kind -> (positions in cur of the continuing tracks, their positions in nxt)
-        ended = []  # (kind, position in cur), in the order the rule lists them
-        for kind, up in (("maximum", True), ("minimum", False)):
-            heads = cur.v[kind]
-            w = _climb(S, f_next, heads, up)
-            pos = _positions(nxt.v[kind], w)  # -1: the walk stopped on a regular vertex
-            ended += [(kind, int(a)) for a in np.flatnonzero(pos < 0)]
-            reach = np.flatnonzero(pos >= 0)
-            _, first, inv, cnt = np.unique(pos[reach], return_index=True, return_inverse=True, return_counts=True)
-            win = reach[first]  # a group of one: its only head continues
-            for g in np.argsort(first, kind="stable"):  # groups in the order of their first head
-                if cnt[g] == 1:
-                    continue
-                vs = reach[inv == g]
-                cv, cpers, _ = diagram(i)
-                sign = 1.0 if up else -1.0
-                key = [(float(q), sign * f_now[heads[a]], -int(heads[a]))
-                       for a, q in zip(vs, _lookup(cv, cpers, heads[vs]), strict=True)]
-                best = int(vs[max(range(len(vs)), key=key.__getitem__)])
-                win[g] = best
-                ended += [(kind, int(a)) for a in vs if a != best]
-            new_of[kind] = (win, pos[win])
-        partner = diagram(i)[2] if ended else {}
-        ending = {partner[int(cur.v[k][a])] for k, a in ended if int(cur.v[k][a]) in partner}
-        sv = cur.v["saddle"]
-        keep = np.flatnonzero(~np.isin(sv, np.fromiter(ending, np.int64, len(ending))))
-        a, b = _match(V, keep, sv, nxt.v["saddle"], radius)
-        new_of["saddle"] = (a, b)
-        gone = np.ones(len(sv), bool)
-        gone[a] = False
-        ended += [("saddle", int(x)) for x in np.flatnonzero(gone)]
-        born = []
-        for kind in ("minimum", "maximum", "saddle"):
-            a, b = new_of[kind]
-            tid = np.full(len(nxt.v[kind]), -1, np.int64)
-            tid[b] = ids[kind][a]
-            fresh = np.flatnonzero(tid < 0)
-            tid[fresh] = p + np.arange(len(fresh))
-            p += len(fresh)
-            kinds += [kind] * len(fresh)
-            born += [(kind, int(x)) for x in fresh]
-            new_ids[kind] = tid
-        events += _events(i, ended, born, ids, new_ids, cur, nxt, new_of["saddle"], partner, V, radius)
-        alive.append((np.concatenate([new_ids[k] for k in KINDS]), np.concatenate([nxt.v[k] for k in KINDS]),
-                      np.concatenate([nxt.m[k] for k in KINDS])))
-        cur, ids = nxt, new_ids
-    vertex = np.full((p, T), -1, np.int64)
-    mult = np.zeros((p, T), np.int64)
-    for j, (tid, v, m) in enumerate(alive):
-        vertex[tid, j], mult[tid, j] = v, m
-    kind = np.array(kinds, dtype=object)
-    known = {j: d[:2] for j, d in diagrams.items()}
-    return Tracks(kind, vertex, mult, times, events, V, (S, Fa, known))
+class _Diagrams:
+    """The persistence of the scales, computed where needed: ``diagrams(i)`` is (the critical
+    vertices of scale i sorted, their persistence, {creator: destroyer})."""
+
+    def __init__(self, S, F):
+        self.S, self.F, self.done = S, F, {}
+
+    def __call__(self, i):
+        if i not in self.done:
+            dg = persistence(self.S, self.F[:, i])
+            self.done[i] = _vertex_persistence(dg) + (dict(zip(dg.pairs[:, 0].tolist(), dg.pairs[:, 1].tolist(),
+                                                                strict=True)),)
+        return self.done[i]
+
+    def known(self):
+        """{scale: (vertices, persistence)} of the scales computed."""
+        return {j: d[:2] for j, d in self.done.items()}
+
+
+def _living(ids, sc):
+    """(track ids, vertices, multiplicities) of the critical points of a scale, in :data:`KINDS` order."""
+    return (np.concatenate([ids[k] for k in KINDS]), np.concatenate([sc.v[k] for k in KINDS]),
+            np.concatenate([sc.m[k] for k in KINDS]))
+
+
+def _follow_extrema(S, cur, nxt, f_now, f_next, diagrams, i):
+    """Maxima and minima of scale i (``cur``) followed along the flow to scale i + 1 (``nxt``):
+    ({kind: (positions in cur of the continuing tracks, their positions in nxt)}, the ended
+    ``(kind, position in cur)`` in the order the rule lists them)."""
+    new_of, ended = {}, []
+    for kind, up in (("maximum", True), ("minimum", False)):
+        heads = cur.v[kind]
+        w = _climb(S, f_next, heads, up)
+        pos = _positions(nxt.v[kind], w)  # -1: the walk stopped on a regular vertex
+        ended += [(kind, int(a)) for a in np.flatnonzero(pos < 0)]
+        reach = np.flatnonzero(pos >= 0)
+        _, first, inv, cnt = np.unique(pos[reach], return_index=True, return_inverse=True, return_counts=True)
+        win = reach[first]  # a group of one: its only head continues
+        for g in np.argsort(first, kind="stable"):  # groups in the order of their first head
+            if cnt[g] == 1:
+                continue
+            vs = reach[inv == g]
+            cv, cpers, _ = diagrams(i)
+            sign = 1.0 if up else -1.0
+            key = [(float(q), sign * f_now[heads[a]], -int(heads[a]))
+                   for a, q in zip(vs, _lookup(cv, cpers, heads[vs]), strict=True)]
+            best = int(vs[max(range(len(vs)), key=key.__getitem__)])
+            win[g] = best
+            ended += [(kind, int(a)) for a in vs if a != best]
+        new_of[kind] = (win, pos[win])
+    return new_of, ended
+
+
+def _follow_saddles(V, cur, nxt, ended, partner, radius):
+    """The saddles of ``cur`` not paired with an ended extremum matched to those of ``nxt``:
+    ((positions in cur, positions in nxt), the ended ``("saddle", position in cur)``)."""
+    ending = {partner[int(cur.v[k][a])] for k, a in ended if int(cur.v[k][a]) in partner}
+    sv = cur.v["saddle"]
+    keep = np.flatnonzero(~np.isin(sv, np.fromiter(ending, np.int64, len(ending))))
+    a, b = _match(V, keep, sv, nxt.v["saddle"], radius)
+    gone = np.ones(len(sv), bool)
+    gone[a] = False
+    return (a, b), [("saddle", int(x)) for x in np.flatnonzero(gone)]
+
+
+def _number(new_of, ids, nxt, p, kinds):
+    """The track ids of the critical points of ``nxt``: a continuing one keeps its track's, a new
+    one gets the next free id (``p`` on, its kind appended to ``kinds``). Returns ({kind: ids},
+    the born ``(kind, position in nxt)``, the next free id)."""
+    new_ids, born = {}, []
+    for kind in ("minimum", "maximum", "saddle"):
+        a, b = new_of[kind]
+        tid = np.full(len(nxt.v[kind]), -1, np.int64)
+        tid[b] = ids[kind][a]
+        fresh = np.flatnonzero(tid < 0)
+        tid[fresh] = p + np.arange(len(fresh))
+        p += len(fresh)
+        kinds += [kind] * len(fresh)
+        born += [(kind, int(x)) for x in fresh]
+        new_ids[kind] = tid
+    return new_ids, born, p
 
 
 class _Scale:
@@ -414,35 +439,14 @@ def _positions(sorted_vertices, w):
     return np.where(sorted_vertices[j] == w, j, -1)
 
 
-def _k_climb(f, ptr, adj, starts, up):
-    """From each start, steepest ascent (``up``) or descent in the order of ``(f, vertex index)``:
-    each step to the highest (lowest) neighbour while it is higher (lower); the vertex it stops on."""
-    out = starts.copy()
-    for s in range(len(starts)):
-        v = starts[s]
-        while True:
-            best = v
-            for k in range(ptr[v], ptr[v + 1]):
-                u = adj[k]
-                if up:
-                    if f[u] > f[best] or (f[u] == f[best] and u > best):
-                        best = u
-                elif f[u] < f[best] or (f[u] == f[best] and u < best):
-                    best = u
-            if best == v:
-                break
-            v = best
-        out[s] = v
-    return out
-
-
 def _climb(S, f, starts, up):
-    """:func:`_k_climb` on the surface (compiled)."""
+    """The vertex where steepest ascent (``up``) or descent from each of ``starts`` stops (the
+    compiled loop ``climb`` of ``o3dheat.topology._loops``)."""
     ptr, adj = S.adjacency
     starts = np.ascontiguousarray(starts, dtype=np.int64)
     if not len(starts):
         return starts
-    return compiled(_k_climb)(np.ascontiguousarray(f), ptr, adj, starts, up)
+    return _loops.kernel("climb")(np.ascontiguousarray(f), ptr, adj, starts, up)
 
 
 def _match(V, keep, old, new, radius):
@@ -456,6 +460,7 @@ def _match(V, keep, old, new, radius):
         at = np.minimum(np.searchsorted(new, old[keep], sorter=order), len(new) - 1)
         same = new[order[at]] == old[keep]
         return keep[same], order[at[same]].astype(np.int64)
+    # imported here: scipy.optimize costs 0.2 s to import, which `import o3dheat` does not pay
     from scipy.optimize import linear_sum_assignment
 
     A, B = V[old[keep]], V[new]
