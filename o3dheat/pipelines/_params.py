@@ -64,6 +64,32 @@ def doc_params(doc: str | None) -> dict:
     return {k: " ".join(v) for k, v in out.items()}
 
 
+def plain_text(text: str) -> str:
+    r"""The reStructuredText of a docstring as plain one-line text: ````literal```` and ```x``` lose their
+    backticks, roles keep their text (``:func:`~a.b` `` -> ``b``, ``:class:`T <a.T>` `` -> ``T``),
+    a trailing ``::`` becomes ``:``, and lines are joined.
+
+    Examples
+    --------
+    >>> from o3dheat.pipelines.filters import plain_text
+    >>> plain_text("Smooth ``f`` with\n    :func:`~o3dheat.spectral.kernel.smooth` (see :class:`HeatKernel <o3dheat.HeatKernel>`)::")
+    'Smooth f with smooth (see HeatKernel):'
+    """
+    def role(m):
+        body = m.group(1)
+        label = re.match(r"(.*?)\s*<[^<>]*>$", body, re.S)
+        if label and label.group(1):
+            return label.group(1)
+        body = body.lstrip("!")
+        return body.rsplit(".", 1)[-1] if body.startswith("~") else body
+
+    text = re.sub(r"(?::[\w.+-]+)+:`([^`]*)`", role, text)
+    text = re.sub(r"``(.+?)``", r"\1", text, flags=re.S)
+    text = re.sub(r"`([^`]+)`_{0,2}", r"\1", text)
+    text = " ".join(text.split())
+    return text[:-1] if text.endswith("::") else text
+
+
 class OneOf:
     """A filter parameter's choices that are defined elsewhere and read when a value is checked,
     never copied: annotate the field ``typing.Annotated[str, OneOf(lambda: CHOICES)]``.

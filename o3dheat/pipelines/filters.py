@@ -1,33 +1,19 @@
 """Filters: the protocol, the registry (:func:`names`, :func:`get`, :func:`describe`, :func:`apply`) and :class:`Chain`.
 
-A filter is a small frozen dataclass whose typed fields are its parameters (:mod:`o3dheat.pipelines._params`:
-types, bounds, the reading of command-line text); calling it on a mesh returns a **new**
-``o3d.t.geometry.TriangleMesh`` with every attribute of the input kept and its own outputs added
-(point clouds give point clouds). Filters are found, lazily, through the entry-point group
-:data:`GROUP`: o3dheat's own (``o3dheat_filters``, written with the filter SDK
-:mod:`o3dheat.pipelines.site`) exactly like a third-party plugin's. The rules for columns and outputs
-are in :mod:`o3dheat.pipelines.columns`; every name of both is reachable from here.
+A filter is a frozen dataclass whose typed fields are its parameters (types and bounds:
+``o3dheat.pipelines._params``; columns and outputs: :mod:`o3dheat.pipelines.columns`; every name
+of both is reachable from here); called on a mesh it returns a **new** tensor geometry with the
+input's attributes and its own outputs. Filters are found, lazily, in the entry-point group
+:data:`GROUP`: o3dheat's own (``o3dheat_filters``, written with :mod:`o3dheat.pipelines.site`) as a
+plugin's would be.
 
 Notes
 -----
-A plugin registers its filter in its ``pyproject.toml``::
-
-    [project.entry-points."o3dheat.filters"]
-    my_filter = "my_package.my_module:MyFilter"
-
-A chain is a list of configured filters; it can be saved to and loaded from a TOML file::
-
-    [[filter]]
-    name = "scalar"
-    kind = "height"
-
-    [[filter]]
-    name = "heat_smooth"
-    attribute = "height"
-
-All filters of a chain, and of a Python session, share one spectrum per mesh and solver
-settings (:func:`shared_spectrum`). The specification of filters, chains and plugins:
-``docs/details/filters.md``.
+A plugin registers ``my_filter = "my_package.my_module:MyFilter"`` under
+``[project.entry-points."o3dheat.filters"]`` in its ``pyproject.toml``. A chain is saved to and
+loaded from TOML as ``[[filter]]`` tables (``name = "scalar"``, then its parameters). All filters
+of a chain, and of a session, share one spectrum per mesh and settings (:func:`shared_spectrum`).
+The specification of filters, chains and plugins: ``docs/details/filters.md``.
 """
 
 from __future__ import annotations
@@ -45,7 +31,18 @@ from o3dheat.errors import MeshError
 from o3dheat.io import atomic_write_text, read_toml
 from o3dheat.typing import PathLike
 
-from ._params import Limits, OneOf, Parameter, check_field, doc_params, hints, param, parse_value, type_text
+from ._params import (
+    Limits,
+    OneOf,
+    Parameter,
+    check_field,
+    doc_params,
+    hints,
+    param,
+    parse_value,
+    plain_text,
+    type_text,
+)
 from .columns import (
     PLY_RESERVED,
     PROTECTED,
@@ -182,32 +179,6 @@ def parameter_types(name: str) -> dict:
     <class 'int'>
     """
     return hints(_class(name))
-
-
-def plain_text(text: str) -> str:
-    r"""The reStructuredText of a docstring as plain one-line text: ````literal```` and ```x``` lose their
-    backticks, roles keep their text (``:func:`~a.b` `` -> ``b``, ``:class:`T <a.T>` `` -> ``T``),
-    a trailing ``::`` becomes ``:``, and lines are joined.
-
-    Examples
-    --------
-    >>> from o3dheat.pipelines.filters import plain_text
-    >>> plain_text("Smooth ``f`` with\n    :func:`~o3dheat.spectral.kernel.smooth` (see :class:`HeatKernel <o3dheat.HeatKernel>`)::")
-    'Smooth f with smooth (see HeatKernel):'
-    """
-    def role(m):
-        body = m.group(1)
-        label = re.match(r"(.*?)\s*<[^<>]*>$", body, re.S)
-        if label and label.group(1):
-            return label.group(1)
-        body = body.lstrip("!")
-        return body.rsplit(".", 1)[-1] if body.startswith("~") else body
-
-    text = re.sub(r"(?::[\w.+-]+)+:`([^`]*)`", role, text)
-    text = re.sub(r"``(.+?)``", r"\1", text, flags=re.S)
-    text = re.sub(r"`([^`]+)`_{0,2}", r"\1", text)
-    text = " ".join(text.split())
-    return text[:-1] if text.endswith("::") else text
 
 
 # ------------------------------------------------------------------------------- parameters

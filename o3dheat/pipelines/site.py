@@ -1,27 +1,22 @@
 """The filter SDK: :class:`Site` (a filter's copy of its input: attributes, surface, spectrum), parameter types, kernels.
 
-Entry points: :class:`Site`; :func:`checked` (a filter's parameters checked at construction); the
-parameter types (:data:`Variant`, :data:`Grid`, :data:`HksForm`, :data:`Normalization`,
-:data:`Operators`, :data:`Method`) and bounds (:func:`eigenpairs`, :func:`scale_count`,
-:func:`time_list`, :func:`tolerance`, :func:`persistence`, :func:`fraction`); the smoothing of a
-site (:func:`kernel_of`, :func:`flow_of`, :func:`smoother`, :func:`times_of`, :func:`time_count`);
-and, for a filter's ``plan``, :func:`param`, :func:`check_column` and :func:`need_attribute`
-(of :mod:`o3dheat.pipelines.filters`). o3dheat's built-in filters (``o3dheat_filters``) are written
-with it, as a third-party plugin would be.
+Entry points: :class:`Site`, :func:`checked`; parameter types (:data:`Variant`, :data:`Method`, ...)
+and bounds (:func:`eigenpairs`, :func:`time_list`, ...); :func:`kernel_of`, :func:`flow_of`,
+:func:`smoother`, :func:`times_of`; for a ``plan``, :func:`param`, :func:`check_column`,
+:func:`need_attribute`. The built-in filters (``o3dheat_filters``) are written with it.
 
 Notes
 -----
-Meshes: the filter works on the mesh itself. Point clouds: ``operators="reconstruct"`` builds a
-surface through the points (:func:`o3dheat.geometry.points.reconstruct`, Poisson), moves input
-fields to its vertices (nearest point), computes there and brings results back to the points by
-barycentric interpolation at the closest surface point; ``operators="robust"`` uses
-robust-laplacian's point-cloud Laplacian and lumped mass on the points directly (no surface, so
-no critical points), when that package is installed (``pip install robust-laplacian``).
+Point clouds: ``operators="reconstruct"`` builds a surface through the points
+(:func:`o3dheat.geometry.points.reconstruct`, Poisson), moves input fields to its vertices
+(nearest point), computes there and brings results back to the points by barycentric
+interpolation at the closest surface point; ``operators="robust"`` uses robust-laplacian's
+point-cloud Laplacian and lumped mass on the points (no surface, so no critical points), when that
+package is installed (``pip install robust-laplacian``). Meshes: the filter works on the mesh.
 """
 
 from __future__ import annotations
 
-import hashlib
 import logging
 import typing
 from typing import Annotated, Literal
@@ -30,11 +25,12 @@ import numpy as np
 import open3d as o3d
 
 from o3dheat.errors import MeshError
-from o3dheat.geometry import as_arrays, interpolation, points
+from o3dheat.geometry import as_arrays, interpolation
 from o3dheat.geometry import mesh as meshes
-from o3dheat.spectral import HeatFlow, HeatKernel, Spectrum, heatflow, kernel, spectrum
+from o3dheat.spectral import HeatFlow, HeatKernel, Spectrum, heatflow, kernel
 from o3dheat.typing import MeshLike
 
+from . import _clouds as clouds
 from .filters import (
     OneOf,
     attribute_columns,
@@ -343,7 +339,7 @@ class Site:
                 raise MeshError("this filter needs a surface (faces): use operators='reconstruct' for "
                                 "point clouds")
             else:
-                self._surface = _reconstruction(self)
+                self._surface = clouds.reconstruction(self)
         return self._surface
 
     def to_surface(self, f: np.ndarray) -> np.ndarray:
@@ -397,7 +393,7 @@ class Site:
         (5, 'lumped')
         """
         if not self.is_mesh and self.operators == "robust":
-            s = _robust_spectrum(self.P, k)
+            s = clouds.robust_spectrum(self.P, k)
         else:
             V, F = self.surface()
             s = shared_spectrum(V, F, k=k, mass=mass, cache=cache)
@@ -405,36 +401,6 @@ class Site:
             log.warning("k=%d eigenpairs asked for, but this surface allows %d: using k=%d (ask for k <= %d "
                         "to silence this)", k, s.k, s.k, s.k)
         return s
-
-
-def _reconstruction(site):
-    """The surface through a site's points, made once per point set and normals and shared by the
-    steps of a chain (each step reads its own copy of the cloud: reconstructing it again cost a
-    Poisson solve per step, and its repairs were reported at every step)."""
-    meshes.check_points(site.P, planar=False)
-    h = hashlib.sha256(np.ascontiguousarray(site.P).tobytes())
-    if "normals" in site.attrs:
-        h.update(np.ascontiguousarray(site.attrs["normals"].numpy(), dtype=np.float64).tobytes())
-    return spectrum.memoized(("reconstruct", h.hexdigest()), lambda: points.reconstruct(site.out))
-
-
-def _robust_operators(P):
-    meshes.check_points(P, planar=True, min_points=31, what="the point cloud (robust operators: 30 neighbours each)")
-    try:  # an optional dependency (pip install robust-laplacian): imported when a filter asks for it
-        import robust_laplacian
-    except ImportError:
-        raise MeshError("operators='robust' needs robust-laplacian: pip install robust-laplacian "
-                        "(or use operators='reconstruct')") from None
-    return robust_laplacian.point_cloud_laplacian(P)
-
-
-def _robust_spectrum(P, k):
-    def compute():
-        L, M = _robust_operators(P)
-        return spectrum.eigensolve_operators(L, M, k=min(k, len(P) - 2))
-
-    key = ("robust", hashlib.sha256(np.ascontiguousarray(P, dtype=np.float64).tobytes()).hexdigest(), k)
-    return spectrum.memoized(key, compute)
 
 
 def kernel_of(site: Site, k: int, variant: str = "weighted", normalize: str | None = None) -> HeatKernel:
@@ -475,7 +441,7 @@ def flow_of(site: Site, variant: str = "weighted", normalize: str | None = None,
         if variant != "weighted":
             raise MeshError(f"operators='robust' comes with robust-laplacian's own mass: use variant='weighted', "
                             f"or operators='reconstruct' for the {variant!r} kernel")
-        L, M = _robust_operators(site.P)
+        L, M = clouds.robust_operators(site.P)
         return HeatFlow.from_operators(L, M, normalize=normalize, tol=tol)
     return HeatFlow(site.surface(), variant=variant, normalize=normalize, tol=tol)
 

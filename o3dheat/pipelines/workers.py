@@ -78,9 +78,11 @@ class OneLineLogs(WorkerPlugin):
     >>> import logging
     >>> from o3dheat.pipelines.workers import OneLineLogs
     >>> plugin = OneLineLogs()
+    >>> left = lambda: [f for h in logging.getLogger().handlers for f in h.filters if type(f).__name__ == "DaskLogs"]
+    >>> before = left()                  # (those of an o3dheat command run earlier in this process)
     >>> plugin.setup(None); plugin.teardown(None)
-    >>> [f for h in logging.getLogger().handlers for f in h.filters if type(f).__name__ == "DaskLogs"]
-    []
+    >>> left() == before
+    True
     """
 
     name = "o3dheat-one-line-logs"
