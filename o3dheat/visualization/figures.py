@@ -12,12 +12,12 @@ from o3dheat.errors import MeshError
 from o3dheat.geometry import as_arrays, check_mesh
 from o3dheat.io import atomic_write, atomic_write_text
 
-from . import plot
+from . import _layout, _panels, charts, plot
 
 __all__ = ["paper_figures", "track_figures", "study_figures"]
 
 
-def _panels(up, *args, **kwargs):
+def _fields(up, *args, **kwargs):
     return plot.fields(*args, up=up, **kwargs)
 
 
@@ -69,7 +69,7 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     >>> len(list(out.glob("*.png"))), index.name  # doctest: +SKIP
     (10, 'index.md')
 
-    (Skipped in the test run, which draws them in ``tests/test_figures.py``: ten figures take
+    (Skipped in the test run, which draws them in ``tests/visualization/test_figures.py``: ten figures take
     a few seconds.)
     """
     from pathlib import Path
@@ -123,9 +123,9 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     for h, scales_png, variation_png, label, suptitle, chart, about_scales, about_chart in panels:
         titles = [f"f ({count(f)} critical points)"] + [
             f"{label(i)} ({count(h.fields[:, i])} c.p., ε∞ {h.errors[i]:.3f})" for i in cols]
-        _save(_panels(up, (V, F), np.c_[f, h.fields[:, cols]], titles=titles, ncols=4, label="f, Φ_t f",
+        _save(_fields(up, (V, F), np.c_[f, h.fields[:, cols]], titles=titles, ncols=4, label="f, Φ_t f",
                      suptitle=suptitle), out / scales_png)
-        _save(plot.scale_space(h, title=chart), out / variation_png)
+        _save(charts.scale_space(h, title=chart), out / variation_png)
         entries += [(scales_png, about_scales), (variation_png, about_chart)]
     # Fig. 2: 10 vs k eigenpairs at two scales
     panels, titles = [], []
@@ -135,7 +135,7 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
             g = KK.smooth(f, ti)
             panels.append(g)
             titles.append(f"k = {kk}, t{i + 1}: ε∞ {KK.error(f, ti):.3f}, {count(g)} c.p.")
-    _save(_panels(up, (V, F), np.stack(panels, 1), titles=titles, ncols=4, label="Φ_t f",
+    _save(_fields(up, (V, F), np.stack(panels, 1), titles=titles, ncols=4, label="Φ_t f",
                  suptitle=f"{name}: 10 vs {k} eigenpairs (Fig. 2)"), out / "fig2_eigenpairs.png")
     entries.append(("fig2_eigenpairs.png", f"10 vs {k} eigenpairs at the first and last scale: more "
                     "eigenfunctions, smaller ε∞ and more critical points"))
@@ -147,7 +147,7 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     ti = Ki.scales()[4]
     d1 = diffuse((Vi, Fi), fi, dt=ti / 10, steps=10, scheme="implicit")
     d2 = diffuse((Vi, Fi), fi, dt=ti / 2, steps=10, scheme="implicit")
-    _save(_panels(up, (Vi, Fi), np.stack([fi, Kv.smooth(fi, Kv.scales()[4]), Ki.smooth(fi, ti), d1, d2], 1), ncols=5,
+    _save(_fields(up, (Vi, Fi), np.stack([fi, Kv.smooth(fi, Kv.scales()[4]), Ki.smooth(fi, ti), d1, d2], 1), ncols=5,
                  label="f, Φ_t f",
                  titles=["f (irregular sampling)", "Voronoi kernel (7), t5", "weighted kernel, t5",
                          "scheme (8), t5", "scheme (8), 5 t5"],
@@ -161,7 +161,7 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     c = int(np.argmin(np.linalg.norm(Vi - Vi.mean(0) - np.eye(3)[a] * np.ptp(Vi[:, a]) / 2, axis=1)))
     B = np.stack([Kl.canonic_basis(c, Kl.scales()[0]), Kl.canonic_basis(c, Kl.scales()[4]),
                   Ki.canonic_basis(c, Ki.scales()[0]), Ki.canonic_basis(c, Ki.scales()[4])], 1)
-    _save(_panels(up, (Vi, Fi), B, ncols=4, shared_range=False, critical_points=True, label="Φ_t(e_i)",
+    _save(_fields(up, (Vi, Fi), B, ncols=4, shared_range=False, critical_points=True, label="Φ_t(e_i)",
                  titles=["linear kernel, t1", "linear kernel, t5", "weighted kernel, t1", "weighted kernel, t5"],
                  suptitle=f"{name}: canonic basis Φ_t(e_i) on the irregular sampling (Figs. 4, 5)"),
           out / "fig4_5_canonic.png")
@@ -174,7 +174,7 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     ga, _ = feature_driven(K, f, A_all, t[0])
     gf, _ = feature_driven(K, f, A_few, t[0])
     pct = 100.0 * len(A_few) / max(len(A_all), 1)
-    _save(_panels(up, (V, F), np.stack([f, ga, gf], 1), ncols=3, shared_range=False, label="f, Φ_t(pr_A f)",
+    _save(_fields(up, (V, F), np.stack([f, ga, gf], 1), ncols=3, shared_range=False, label="f, Φ_t(pr_A f)",
                  titles=["f", f"A = all {len(A_all)} critical points", f"A = δ-simplified ({pct:.0f}%)"],
                  suptitle=f"{name}: feature-driven approximation Φ_t(pr_A f), t1 (Figs. 6, 7)"),
           out / "fig6_7_feature.png")
@@ -215,7 +215,7 @@ def _prepared(mesh, field, noise, seed, max_faces, up, out):
                             "pick a column")
     report = check_mesh((V0, F0))
     if report.non_manifold_edges or report.non_manifold_vertices:  # as plot draws them: repaired, said
-        V0, F0, f0 = plot._repaired(V0, F0, f0, f"{report.non_manifold_edges} non-manifold edges and "
+        V0, F0, f0 = _layout.repaired(V0, F0, f0, f"{report.non_manifold_edges} non-manifold edges and "
                                     f"{report.non_manifold_vertices} non-manifold vertices", "the figures are made")
     out.mkdir(parents=True, exist_ok=True)
     prep = prepare((V0, F0))
@@ -237,7 +237,7 @@ def _track_times(V, F, count, t_max=None):
     from o3dheat.spectral import HeatKernel, eigensolve
 
     if t_max is None:
-        parts = int(plot._parts(len(V), F).max()) + 1
+        parts = int(_panels.vertex_parts(len(V), F).max()) + 1
         t_max = HeatKernel(eigensolve((V, F), k=min(parts + 3, len(V) - 2))).scales(2, grid="log")[-1]
     E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
     t_min = float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean()) ** 2
@@ -253,12 +253,12 @@ def _track_entries(V, F, f, out, name, up, t_max=None, count=TRACK_SCALES, longe
 
     t = _track_times(V, F, count, t_max)
     Ft = heat_flow((V, F), f, t)
-    parts = plot._parts(len(V), F)
+    parts = _panels.vertex_parts(len(V), F)
     # a part where Φ_t f is constant to rounding (a small one, at late scales): its mean there, as the
     # drawings take it; the tracks born on it then (critical points of the vertices' order) are left out
-    flat = np.stack([plot._flat_parts(Ft[:, j], parts) for j in range(len(t))], 1)  # (parts, T)
+    flat = np.stack([_panels.flat_parts(Ft[:, j], parts) for j in range(len(t))], 1)  # (parts, T)
     for j in range(len(t)):
-        Ft[:, j] = plot._flattened(Ft[:, j], parts, flat[:, j])
+        Ft[:, j] = _panels.flattened(Ft[:, j], parts, flat[:, j])
     tr = track_critical_points((V, F), Ft, t)
     born_flat = flat[parts[tr.vertex[np.arange(len(tr)), tr.first]], tr.first]
     tr = tr.subset(~born_flat)
@@ -269,7 +269,7 @@ def _track_entries(V, F, f, out, name, up, t_max=None, count=TRACK_SCALES, longe
     _save(plot.tracks((V, F), tr, Ft, longest=longest, up=up, label="f",
                       title=f"{name}: critical points of the heat flow Φ_t f across {len(t)} scales"),
           out / "tracks_paths.png")
-    _save(plot.lifetime_chart(tr, title=f"{name}: lifetimes of the {len(tr):,} tracks of critical points"),
+    _save(charts.lifetime_chart(tr, title=f"{name}: lifetimes of the {len(tr):,} tracks of critical points"),
           out / "tracks_lifetimes.png")
     grid = f"t = 0 and {len(t) - 1} log-spaced times {t[1]:.3g} .. {t[-1]:.3g}"
     return [("tracks_paths.png", f"the critical points of Φ_t f (exact heat flow, o3dheat.heat_flow; {grid}) "
@@ -290,7 +290,7 @@ def track_figures(mesh, out, field=None, noise=0.1, seed=0, name="mesh", max_fac
                   count=TRACK_SCALES, longest=TRACK_LONGEST):
     """The critical points of a field's heat flow followed across scales: the tracks on the
     surface (:func:`o3dheat.visualization.plot.tracks`, ``tracks_paths.png``) and their lifetimes
-    (:func:`o3dheat.visualization.plot.lifetime_chart`, ``tracks_lifetimes.png``), with an ``index.md``.
+    (:func:`o3dheat.visualization.charts.lifetime_chart`, ``tracks_lifetimes.png``), with an ``index.md``.
 
     The field (as for :func:`paper_figures`) is smoothed by the exact heat flow
     (:func:`o3dheat.heat_flow`) at ``t = 0`` and ``count - 1`` log-spaced times from the squared
@@ -332,7 +332,7 @@ def track_figures(mesh, out, field=None, noise=0.1, seed=0, name="mesh", max_fac
 
 
 def study_figures(table, out):
-    """One plot per descriptor of a robustness study (:func:`o3dheat.visualization.plot.study`), as
+    """One plot per descriptor of a robustness study (:func:`o3dheat.visualization.charts.study`), as
     ``study_<descriptor>.png`` in ``out``.
 
     Parameters
@@ -361,6 +361,6 @@ def study_figures(table, out):
     written = []
     for d in sorted(ok["descriptor"].unique()):
         path = Path(out) / f"study_{d}.png"
-        _save(plot.study(table, descriptor=d), path)
+        _save(charts.study(table, descriptor=d), path)
         written.append(path)
     return written

@@ -5,6 +5,7 @@ import pytest
 from conftest import glued_spheres, grid, icosphere, torus
 
 import o3dheat
+import o3dheat.visualization.charts as charts
 import o3dheat.visualization.figures as figures
 import o3dheat.visualization.plot as plot
 
@@ -173,7 +174,7 @@ def gallery_cells(path):
     return [ast.parse(c) for c in cells if c.strip()]
 
 
-EXAMPLES = sorted((__import__("pathlib").Path(__file__).parents[1] / "docs" / "examples").glob("plot_*.py"))
+EXAMPLES = sorted((__import__("pathlib").Path(__file__).parents[2] / "docs" / "examples").glob("plot_*.py"))
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
@@ -229,9 +230,9 @@ def test_track_figures_show_the_surface_and_one_bar_per_track(tmp_path, monkeypa
     else:
         (V, F), up = (three_parts() if which == "three parts" else wavy_sheet()), "z"
     made, charted = [], []
-    save, chart = figures._save, plot.lifetime_chart
+    save, chart = figures._save, charts.lifetime_chart
     monkeypatch.setattr(figures, "_save", lambda fig, path: (made.append((path.name, fig)), save(fig, path)))
-    monkeypatch.setattr(plot, "lifetime_chart", lambda tr, **kw: (charted.append(tr), chart(tr, **kw))[1])
+    monkeypatch.setattr(charts, "lifetime_chart", lambda tr, **kw: (charted.append(tr), chart(tr, **kw))[1])
     index = figures.track_figures((V, F), tmp_path, name=which, up=up)
     text = index.read_text()
     assert [n for n, _ in made] == ["tracks_paths.png", "tracks_lifetimes.png"]
