@@ -1,4 +1,16 @@
-"""Topology of scalar fields: PL critical points, persistence, level sets, tracks, approximation."""
+"""Topology of scalar fields: PL critical points, persistence, level sets, tracks, approximation.
+
+Modules, in the order of the data:
+
+* :mod:`~o3dheat.topology.surface`: :class:`~o3dheat.topology.surface.Surface`
+* :mod:`~o3dheat.topology.critical`: :func:`~o3dheat.topology.critical.critical_points`
+* :mod:`~o3dheat.topology.persistence`: :func:`~o3dheat.topology.persistence.persistence` (the
+  package's attribute ``persistence`` is the function, not the module)
+* :mod:`~o3dheat.topology.levelsets`: :func:`~o3dheat.topology.levelsets.level_sets`
+* :mod:`~o3dheat.topology.tracking`: :func:`~o3dheat.topology.tracking.track_critical_points`
+* :mod:`~o3dheat.topology.approximation`: :func:`~o3dheat.topology.approximation.scale_space`,
+  :func:`~o3dheat.topology.approximation.feature_driven`
+"""
 
 from .approximation import ScaleSpace, feature_driven, scale_space
 from .critical import (

@@ -1,8 +1,9 @@
-"""The topology's compiled loops (numba): the surface's tables, the lower links, the persistence sweeps.
+"""The topology's compiled loops (numba) and their callers: :func:`kernel`, :func:`edges`, :func:`classified`.
 
-Entry points: :func:`kernel` (the compiled version of a loop, by name), :func:`edges` (the edge
-tables of faces), :func:`classified` (the classification of a field on a Surface),
-:func:`warn_constant`.
+:func:`kernel` gives the compiled version of a loop by name (the surface's tables, the lower links,
+the persistence sweeps, the tracking's climb), :func:`edges` the edge tables of faces,
+:func:`classified` the classification of a field on a Surface; :func:`warn_constant` is the
+warning the critical points and persistence share.
 
 The loops are plain Python functions compiled on first use (:func:`o3dheat._jit.compiled`: numba,
 imported only then, cached once per installation, beside this module). Vertex ids are int32 inside,

@@ -1,5 +1,7 @@
-"""Feature-driven approximation and the scale hierarchy with its stop criteria (§3.1, §3.3).
+"""Feature-driven approximation and the scale hierarchy: :func:`feature_driven`, :func:`scale_space`, :func:`project`.
 
+Notes
+-----
 * ``pr_A`` (:func:`project`) keeps the values of f on a vertex set A and zeroes the rest;
   ``f_glob = Φ_t(pr_A f)`` and ``f_loc = f − f_glob`` (:func:`feature_driven`). By linearity
   ``f_glob = Σ_{i∈A} f_i Φ_t(e_i)``, computed as one smoothing (no canonic basis is formed), and
@@ -19,10 +21,12 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from o3dheat import checks
 from o3dheat.errors import MeshError
 from o3dheat.spectral import HeatFlow, HeatKernel
+from o3dheat.typing import FieldLike, TimesLike
 
 from .critical import critical_points
 from .surface import Surface
@@ -35,7 +39,7 @@ log = logging.getLogger("o3dheat")
 STOPS = (None, "linf", "critical_points", "tracks")
 
 
-def project(f, A):
+def project(f: FieldLike, A: ArrayLike) -> np.ndarray:
     """The projection ``pr_A``: f on the vertex set A, 0 elsewhere (§3.3).
 
     Parameters
@@ -61,7 +65,8 @@ def project(f, A):
     return f
 
 
-def feature_driven(kernel, f, A, t):
+def feature_driven(kernel: HeatKernel | HeatFlow, f: FieldLike, A: ArrayLike,
+                   t: TimesLike) -> tuple[np.ndarray, np.ndarray]:
     """Feature-driven approximation: ``f_glob = Φ_t(pr_A f)`` and ``f_loc = f − f_glob`` (§3.3).
 
     Parameters
@@ -163,12 +168,13 @@ class ScaleSpace:
     tracks: Tracks | None = None
 
     @property
-    def field(self):
+    def field(self) -> np.ndarray:
         """The field at the stop scale, ``fields[:, stop_index]``."""
         return self.fields[:, self.stop_index]
 
 
-def scale_space(kernel, f, scales=None, stop=None, tol=None):
+def scale_space(kernel: HeatKernel | HeatFlow, f: FieldLike, scales: TimesLike | None = None,
+                stop: str | None = None, tol: float | None = None) -> ScaleSpace:
     """The multi-scale hierarchy of a field with the stop criteria of §3.1.
 
     Parameters

@@ -28,7 +28,7 @@ Conventions (each one is tested):
   :mod:`o3dheat.topology.surface`.
 
 **How it scales.** A field costs one pass over the vertex adjacency and one over the faces
-(compiled: ``o3dheat.topology._loops``; no sort of the vertices), once the :class:`Surface` is
+(compiled: ``o3dheat.topology._loops``; no sort of the vertices), once the :class:`~o3dheat.topology.surface.Surface` is
 built.
 """
 
@@ -69,7 +69,7 @@ class CriticalPoints:
     n : int
         Number of vertices of the mesh.
     representative : (n,) int64 ndarray or None
-        :attr:`Surface.representative` of the mesh (duplicate vertices welded), else None.
+        :attr:`~o3dheat.topology.surface.Surface.representative` of the mesh (duplicate vertices welded), else None.
 
     Examples
     --------
@@ -170,10 +170,10 @@ def critical_points(mesh: MeshLike | Surface, f: FieldLike) -> CriticalPoints:
     whose neighbours are all lower is regular (see the module docstring).
 
     Cost: O(m), one pass over the vertex adjacency and one over the faces (compiled; no sort).
-    Build the :class:`Surface` once to analyse many fields: from ``(V, F)`` each call builds it
-    again (0.3–0.7 s at 1M vertices, against 0.02–0.04 s for the field itself). Memory beyond the
-    Surface and the field: about 25 bytes per vertex at the peak (measured at 0.1M, 1M and 10M
-    vertices by ``scripts/bench_topology.py``).
+    Build the :class:`~o3dheat.topology.surface.Surface` once to analyse many fields: from
+    ``(V, F)`` each call builds it again (0.3–0.7 s at 1M vertices, against 0.02–0.04 s for the
+    field itself). Memory beyond the Surface and the field: about 25 bytes per vertex at the peak
+    (measured at 0.1M, 1M and 10M vertices by ``scripts/bench_topology.py``).
 
     Examples
     --------

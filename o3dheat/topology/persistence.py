@@ -19,8 +19,8 @@ above every value), which keeps the same identity with the sublevel 1-dimensiona
 union-finds: a vertex that is not critical joins the component of one lower (upper) neighbour, and
 only the saddles, taken in order, merge components. O(n + c log c) for c critical vertices. The
 loops are compiled (``o3dheat.topology._loops``). About 0.1 µs per vertex for persistence of a
-noisy field at 1M vertices, 0.2 µs to build the :class:`~o3dheat.topology.Surface`; memory: see
-:func:`persistence` and :class:`~o3dheat.topology.Surface`.
+noisy field at 1M vertices, 0.2 µs to build the :class:`~o3dheat.topology.surface.Surface`; memory: see
+:func:`persistence` and :class:`~o3dheat.topology.surface.Surface`.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ class PersistenceDiagram:
     Notes
     -----
     Every critical vertex appears exactly as often (creators, destroyers and essentials together)
-    as its multiplicity in :func:`critical_points`. Pairs are sorted by dimension, then by
+    as its multiplicity in :func:`~o3dheat.topology.critical.critical_points`. Pairs are sorted by dimension, then by
     decreasing persistence.
 
     Examples
@@ -136,7 +136,7 @@ def persistence(mesh: MeshLike | Surface, f: FieldLike) -> PersistenceDiagram:
 
     Cost: O(n + c log c) for c critical vertices (compiled loops; see the module docstring), about
     0.02 s for a smooth field and 0.1 s for a noisy one (c ≈ 0.6 n) at 1M vertices with a
-    prebuilt :class:`Surface`. Memory beyond the Surface and the field, at the peak: about 30
+    prebuilt :class:`~o3dheat.topology.surface.Surface`. Memory beyond the Surface and the field, at the peak: about 30
     bytes per vertex for a smooth field, 100 for a noisy one (measured at 0.1M, 1M and 10M
     vertices by ``scripts/bench_topology.py``), the returned diagram included (about 50 bytes per
     pair).
@@ -194,7 +194,7 @@ def simplify_critical_points(mesh: MeshLike | Surface, f: FieldLike, delta: floa
     Parameters
     ----------
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh, (V, F) tuple or Surface
-        The surface (a :class:`Surface` when already built, saving its construction).
+        The surface (a :class:`~o3dheat.topology.surface.Surface` when already built, saving its construction).
     f : (n,) array_like
         The field, one value per vertex.
     delta : float, optional

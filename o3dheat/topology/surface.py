@@ -1,7 +1,7 @@
 """The combinatorial surface of a triangle mesh, checked to be a 2-manifold: :class:`Surface`.
 
 Build it once and pass it instead of the mesh to analyse many fields on one mesh
-(:func:`o3dheat.topology.critical_points`, :func:`o3dheat.topology.persistence`, ...).
+(:func:`o3dheat.topology.critical.critical_points`, :func:`o3dheat.topology.persistence.persistence`, ...).
 
 Notes
 -----
@@ -14,7 +14,7 @@ Notes
   (not by :meth:`Surface.from_faces`): the faces use the first copy of each vertex, so results
   are those of the welded mesh. Vertex indices (critical points, pairs) name that first copy; a
   field is averaged over the copies of each vertex; per-vertex outputs
-  (:attr:`o3dheat.topology.CriticalPoints.kind`) give every copy the value of its welded vertex.
+  (:attr:`o3dheat.topology.critical.CriticalPoints.kind`) give every copy the value of its welded vertex.
 
 **How it scales.** The loops over vertices, edges and faces are compiled (numba, ``nogil``) and
 cached beside their module (``o3dheat.topology._loops``), so only the first call of an

@@ -74,22 +74,6 @@ def test_constant_field_is_documented_behaviour(caplog):
     assert np.all(d.persistence == 0)
 
 
-def test_critical_points_filter_on_split_mesh():
-    V, F = torus(1.0, 0.4, 24, 12)
-    Vs, Fs = V[F].reshape(-1, 3), np.arange(3 * len(F)).reshape(-1, 3)
-    m = o3d.t.geometry.TriangleMesh()
-    m.vertex.positions = o3d.core.Tensor(Vs)
-    m.triangle.indices = o3d.core.Tensor(Fs.astype(np.int32))
-    mw = o3d.t.geometry.TriangleMesh()
-    mw.vertex.positions = o3d.core.Tensor(V)
-    mw.triangle.indices = o3d.core.Tensor(F.astype(np.int32))
-    for kw in ({}, {"delta": 0.05}):
-        a = o3dheat.pipelines.filters.apply(m, "critical_points", attribute="positions", column=0, **kw)
-        b = o3dheat.pipelines.filters.apply(mw, "critical_points", attribute="positions", column=0, **kw)
-        np.testing.assert_array_equal(a.vertex["positions_critical"].numpy(),
-                                      b.vertex["positions_critical"].numpy()[F].reshape(-1))
-
-
 def test_high_degree_vertex_is_classified():
     V, F = bipyramid(200)
     f = V[:, 0] + 0.01 * V[:, 2] + 0.001 * np.arange(len(V))
@@ -171,7 +155,6 @@ def test_warm_up_loads_every_compiled_loop():
 def test_critical_points_have_a_length_the_number_of_critical_vertices():
     """Issue 22: CriticalPoints had no len(). len counts vertices; counts weigh saddles by
     multiplicity (a monkey saddle: one vertex, multiplicity 2)."""
-    import open3d as o3d
 
     m = o3d.t.geometry.TriangleMesh.create_torus()
     cp = o3dheat.critical_points(m, m.vertex.positions.numpy()[:, 0])

@@ -98,6 +98,22 @@ def test_split_vertex_mesh_topology_equals_welded(mesh, caplog):
     assert cs.counts == cw.counts
 
 
+def test_critical_points_filter_on_split_mesh():
+    V, F = torus(1.0, 0.4, 24, 12)
+    Vs, Fs = V[F].reshape(-1, 3), np.arange(3 * len(F)).reshape(-1, 3)
+    m = o3d.t.geometry.TriangleMesh()
+    m.vertex.positions = o3d.core.Tensor(Vs)
+    m.triangle.indices = o3d.core.Tensor(Fs.astype(np.int32))
+    mw = o3d.t.geometry.TriangleMesh()
+    mw.vertex.positions = o3d.core.Tensor(V)
+    mw.triangle.indices = o3d.core.Tensor(F.astype(np.int32))
+    for kw in ({}, {"delta": 0.05}):
+        a = o3dheat.pipelines.filters.apply(m, "critical_points", attribute="positions", column=0, **kw)
+        b = o3dheat.pipelines.filters.apply(mw, "critical_points", attribute="positions", column=0, **kw)
+        np.testing.assert_array_equal(a.vertex["positions_critical"].numpy(),
+                                      b.vertex["positions_critical"].numpy()[F].reshape(-1))
+
+
 @pytest.mark.parametrize("name", list(RANDOM_MESHES))
 def test_surface_tables(name):
     V, F = RANDOM_MESHES[name]
