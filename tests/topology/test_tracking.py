@@ -256,6 +256,7 @@ def test_lifetime_features_are_critical_points_of_the_field_with_the_truncated_k
     """Found in review: with method="spectral" the first tracked field was the truncated kernel's
     projection at t = 0, not the field: some features were not critical points of it."""
     import o3dheat.pipelines.filters as flt
+    import o3dheat_filters.feature_approx as feature_approx
 
     m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
     V = m.vertex.positions.numpy().astype(float)
@@ -263,7 +264,7 @@ def test_lifetime_features_are_critical_points_of_the_field_with_the_truncated_k
     m.vertex["f"] = o3d.core.Tensor(f)
     calls = []
     real = o3dheat.feature_driven
-    monkeypatch.setattr(o3dheat, "feature_driven", lambda kernel, g, A, t: calls.append(np.asarray(A))
+    monkeypatch.setattr(feature_approx, "feature_driven", lambda kernel, g, A, t: calls.append(np.asarray(A))
                         or real(kernel, g, A, t))
     flt.apply(m, "feature_approx", attribute="f", lifetime=0.01, method="spectral", k=100)
     crit = o3dheat.critical_points(m, f)
