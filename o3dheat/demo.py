@@ -15,8 +15,12 @@ import time
 from pathlib import Path
 
 import numpy as np
+import open3d as o3d
 
-from o3dheat.io import bumpy_torus, default_mesh  # noqa: F401 - bumpy_torus: run's example uses it (d.bumpy_torus)
+from o3dheat._jit import any_compiled
+from o3dheat.geometry import as_arrays, decimate
+from o3dheat.io import bumpy_torus, default_mesh, write_mesh  # noqa: F401 - bumpy_torus: run's example uses it (d.bumpy_torus)
+from o3dheat.pipelines import apply
 from o3dheat.spectral import HeatFlow, HeatKernel, eigensolve
 from o3dheat.topology import Surface, critical_points
 
@@ -63,12 +67,6 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     >>> out["path"].name, len(out["errors"]), out["critical_points"][0] > 0
     ('t.ply', 10, True)
     """
-    import open3d as o3d
-
-    from o3dheat.geometry import as_arrays, decimate
-    from o3dheat.io import write_mesh
-    from o3dheat.pipelines import apply
-
     timings = {}
     t0 = time.perf_counter()
     name = "input"
@@ -82,11 +80,32 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     timings["resample"] = time.perf_counter() - t0
     spec = eigensolve((V, F), k=min(k, len(V)))
     timings["eigensolve"] = sum(v for key, v in spec.timings.items() if key != "cache")
+    r = _smooth(V, F, spec, _noisy_height(V, noise, seed), timings)
     t0 = time.perf_counter()
+    out = _write(out, V, F, r)
+    timings["write"] = time.perf_counter() - t0
+    stages = _stages(spec, timings)
+    _report(echo, name, V, F, reduction, spec, r)
+    echo("seconds per stage: " + ", ".join(f"{key} {v:.2f}" for key, v in stages.items()))
+    echo(f"wrote {out} (vertex attributes: f, f_smooth (n,10), f_smooth_log (n,10), f_exact (n,10), hks (n,10) "
+         "density form, colors)")
+    return {"path": out, "n_vertices": len(V), "scales": r["scales"], "errors": r["errors"],
+            "log_scales": r["log_scales"], "errors_log": r["errors_log"], "errors_exact": r["errors_exact"],
+            "critical_points": r["counts"], "truncation_bound": r["bound"], "backend": spec.backend,
+            "timings": stages}
+
+
+def _noisy_height(V, noise, seed):
+    """The height along the longest axis plus Gaussian noise (relative to its range, seeded)."""
     rng = np.random.default_rng(seed)
-    axis = int(np.argmax(np.ptp(V, axis=0)))
-    height = V[:, axis]
-    f = height + noise * np.ptp(height) * rng.standard_normal(len(V))
+    height = V[:, int(np.argmax(np.ptp(V, axis=0)))]
+    return height + noise * np.ptp(height) * rng.standard_normal(len(V))
+
+
+def _smooth(V, F, spec, f, timings):
+    """Φ_t f on the paper's grid and the log grid (truncated), the paper's grid exact, the HKS and
+    the critical points of every field; the stages' seconds into ``timings``."""
+    t0 = time.perf_counter()
     K = HeatKernel(spec)
     scales, log_scales = K.scales(10), K.scales(10, grid="log")
     (smooth, bound), smooth_log = K.smooth(f, scales, return_bound=True), K.smooth(f, log_scales)
@@ -104,21 +123,29 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     fields = [f] + list(smooth.T) + list(smooth_log.T) + list(exact.T)
     counts = [sum(critical_points(surface, g).counts) for g in fields]
     timings["critical"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    return {"f": f, "scales": scales, "log_scales": log_scales, "smooth": smooth, "bound": bound,
+            "smooth_log": smooth_log, "errors": errors, "errors_log": errors_log, "exact": exact,
+            "errors_exact": errors_exact, "flow_report": flow_report, "hks": hks, "counts": counts}
+
+
+def _write(out, V, F, r):
+    """The PLY with every field attached and colours of Φ_t f at t5; its path."""
     result = o3d.t.geometry.TriangleMesh()
     result.vertex.positions = o3d.core.Tensor(V)
     result.triangle.indices = o3d.core.Tensor(F)
-    result.vertex["f"] = o3d.core.Tensor(f)
-    result.vertex["f_smooth"] = o3d.core.Tensor(np.ascontiguousarray(smooth))
-    result.vertex["f_smooth_log"] = o3d.core.Tensor(np.ascontiguousarray(smooth_log))
-    result.vertex["f_exact"] = o3d.core.Tensor(np.ascontiguousarray(exact))
-    result.vertex["hks"] = o3d.core.Tensor(np.ascontiguousarray(hks))
+    result.vertex["f"] = o3d.core.Tensor(r["f"])
+    for key, name in (("smooth", "f_smooth"), ("smooth_log", "f_smooth_log"), ("exact", "f_exact"), ("hks", "hks")):
+        result.vertex[name] = o3d.core.Tensor(np.ascontiguousarray(r[key]))
     result = apply(result, "colorize", attribute="f_smooth", column=4)  # Φ_t f at t5, coolwarm
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_mesh(out, result)  # run() is asked for this path: the command keeps earlier results apart
-    timings["write"] = time.perf_counter() - t0
+    return out
 
+
+def _report(echo, name, V, F, reduction, spec, r):
+    """The demo's table: the mesh, the spectrum, and per scale the errors and critical points."""
+    counts, scales, log_scales, bound = r["counts"], r["scales"], r["log_scales"], r["bound"]
     echo(f"o3dheat demo: {name}, resampled to {len(V)} vertices / {len(F)} faces "
          f"(quadric decimation, reduction {reduction:g})")
     echo(f"eigenpairs: {spec.k}   backend: {spec.backend}   λ_k = {spec.eigenvalues[-1]:.4g}   "
@@ -126,37 +153,37 @@ def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed
     echo(f"noisy field f: {counts[0]} critical points (minima + saddles + maxima, each saddle counted with "
          "its multiplicity)")
     echo(f"Φ_t f at the paper's scales t_i = (i/10)/λ_k, truncated to k = {spec.k} eigenpairs (the paper's "
-         f"computation) and exact (the full kernel, o3dheat.heat_flow, tol {flow_report.tol:g}); and truncated on "
-         "the log grid 1/λ_k .. 2 ln(100)/λ_2 (the whole range, to nearly constant):")
+         f"computation) and exact (the full kernel, o3dheat.heat_flow, tol {r['flow_report'].tol:g}); and truncated "
+         "on the log grid 1/λ_k .. 2 ln(100)/λ_2 (the whole range, to nearly constant):")
     echo(f"{'':>5} {'-- paper grid, truncated --':<29} {'-- exact --':<15}  {'-- log grid, truncated -----':<29}")
     echo(f"{'scale':>5} {'t':>10} {'eps_inf':>8} {'crit.':>9} {'eps_inf':>8} {'crit.':>6}  {'t':>10} "
          f"{'eps_inf':>8} {'crit.':>9}")
     for i in range(len(scales)):
-        echo(f"{i + 1:>5} {scales[i]:>10.3e} {errors[i]:>8.4f} {counts[1 + i]:>9} {errors_exact[i]:>8.4f} "
-             f"{counts[21 + i]:>6}  {log_scales[i]:>10.3e} {errors_log[i]:>8.4f} {counts[11 + i]:>9}")
+        echo(f"{i + 1:>5} {scales[i]:>10.3e} {r['errors'][i]:>8.4f} {counts[1 + i]:>9} "
+             f"{r['errors_exact'][i]:>8.4f} {counts[21 + i]:>6}  {log_scales[i]:>10.3e} {r['errors_log'][i]:>8.4f} "
+             f"{counts[11 + i]:>9}")
     echo(f"(with k = {spec.k} eigenpairs Φ_t f is band-limited: at t_1 the eigenpairs it drops would keep "
          f"{np.exp(-0.5 * spec.eigenvalues[-1] * scales[0]):.0%} of their weight, so k, not t, smooths; its "
          f"certificate, ‖Φ_t f − exact‖_W / ‖f‖_W <= {bound[0]:.2g} at t_1 .. {bound[-1]:.2g} at t_10. The exact "
          f"kernel smooths by t alone: {counts[21]} -> {counts[30]} critical points across the paper's scales, "
-         f"{flow_report.solves} solves on one factor)")
-    from o3dheat._jit import any_compiled
+         f"{r['flow_report'].solves} solves on one factor)")
 
-    def label(name, detail, module, what):  # the first run of an installation compiles the loops
-        notes = ([detail] if detail else []) + ([f"incl. compiling {what}, once per installation"]
-                                                 if any_compiled(module) else [])
-        return f"{name} ({'; '.join(notes)})" if notes else name
 
-    stages = {"load": timings["load"], "resample": timings["resample"],
-              label("assemble", "", "o3dheat.geometry._loops", "the assembly loops"): spec.timings.get("assemble", 0.0),
-              "factorize": spec.timings.get("factorize", 0.0),
-              "eigensolve": spec.timings.get("solve", 0.0), "smooth (2 x 10 scales)": timings["smooth"],
-              label("exact", "10 scales", "o3dheat.spectral._krylov_loops", "the Krylov loops"): timings["exact"],
-              "hks (10 scales)": timings["hks"],
-              label("critical points", "31 fields", "o3dheat.topology", "the topology loops"): timings["critical"],
-              "write PLY": timings["write"]}
-    echo("seconds per stage: " + ", ".join(f"{key} {v:.2f}" for key, v in stages.items()))
-    echo(f"wrote {out} (vertex attributes: f, f_smooth (n,10), f_smooth_log (n,10), f_exact (n,10), hks (n,10) "
-         "density form, colors)")
-    return {"path": out, "n_vertices": len(V), "scales": scales, "errors": errors, "log_scales": log_scales,
-            "errors_log": errors_log, "errors_exact": errors_exact, "critical_points": counts,
-            "truncation_bound": bound, "backend": spec.backend, "timings": stages}
+def _label(name, detail, module, what):
+    """A stage's name, with its detail and a note when this process compiled the stage's loops (the
+    first run of an installation does)."""
+    notes = ([detail] if detail else []) + ([f"incl. compiling {what}, once per installation"]
+                                             if any_compiled(module) else [])
+    return f"{name} ({'; '.join(notes)})" if notes else name
+
+
+def _stages(spec, timings):
+    """Seconds per stage, in the order they ran."""
+    return {"load": timings["load"], "resample": timings["resample"],
+            _label("assemble", "", "o3dheat.geometry._loops", "the assembly loops"): spec.timings.get("assemble", 0.0),
+            "factorize": spec.timings.get("factorize", 0.0),
+            "eigensolve": spec.timings.get("solve", 0.0), "smooth (2 x 10 scales)": timings["smooth"],
+            _label("exact", "10 scales", "o3dheat.spectral._krylov_loops", "the Krylov loops"): timings["exact"],
+            "hks (10 scales)": timings["hks"],
+            _label("critical points", "31 fields", "o3dheat.topology", "the topology loops"): timings["critical"],
+            "write PLY": timings["write"]}
