@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import logging
 import os
+import typing
+from collections.abc import Sequence
 
 from distributed.diagnostics.plugin import WorkerPlugin
 
@@ -40,10 +42,10 @@ class PinToCore(WorkerPlugin):
 
     name = "o3dheat-pin-to-core"
 
-    def __init__(self, cpus):
+    def __init__(self, cpus: Sequence[int]):
         self.cpus = sorted(int(c) for c in cpus)
 
-    def setup(self, worker):
+    def setup(self, worker: typing.Any) -> None:
         """Pin this worker process's threads (Dask calls it when the worker starts).
 
         Examples
@@ -87,7 +89,7 @@ class OneLineLogs(WorkerPlugin):
 
     name = "o3dheat-one-line-logs"
 
-    def setup(self, worker):
+    def setup(self, worker: typing.Any) -> None:
         """Dask's records on one line each while the worker runs (Dask calls it at the start).
 
         Examples
@@ -97,7 +99,7 @@ class OneLineLogs(WorkerPlugin):
         self._running = dask_logs(logging.WARNING)
         self._running.__enter__()
 
-    def teardown(self, worker):
+    def teardown(self, worker: typing.Any) -> None:
         """No Dask record below CRITICAL from now to the end of the worker's process (Dask calls
         it when the worker closes; ``worker=None``: undone at once, for the class's example).
 
