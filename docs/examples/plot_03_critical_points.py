@@ -30,7 +30,7 @@ print(cp)                                  # M − s + m = χ = 2 for the (close
 # born at a minimum and merged at a saddle (dimension 0), or a loop born at a saddle and filled in
 # at a maximum (dimension 1). :func:`o3dheat.persistence` stores the latter as (maximum, saddle)
 # pairs of the superlevel sets, which would lie below the diagonal;
-# :func:`o3dheat.visualization.plot.persistence_diagram` draws them as the sublevel sets' (saddle, maximum),
+# :func:`o3dheat.visualization.charts.persistence_diagram` draws them as the sublevel sets' (saddle, maximum),
 # above it like the others. Noise makes many short-lived pairs near the diagonal, the shape's
 # features lie far from it; the classes that never die (the global minimum and maximum of the
 # closed bunny) are on the row ∞.

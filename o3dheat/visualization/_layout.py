@@ -216,3 +216,13 @@ def note(ax, notes, w, each=True):
         text = "\n".join(textwrap.wrap("; ".join(notes), width))
     put = getattr(ax, "text2D", ax.text)  # 3D axes' text takes (x, y, z, s)
     put(0.5, 0.0, text, transform=ax.transAxes, ha="center", va="top", fontsize=7, color="0.35")
+
+
+def washed(cmap):
+    """The colormap mixed halfway with white: the surface under the tracks, which keep the pure
+    critical-point colours (a saturated colormap's red and blue ends would hide them)."""
+    from matplotlib import colormaps
+    from matplotlib.colors import ListedColormap
+
+    base = colormaps[cmap](np.linspace(0.0, 1.0, 256))[:, :3]
+    return ListedColormap(0.45 + 0.55 * base, name=f"{cmap}_washed")

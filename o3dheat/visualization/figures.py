@@ -1,18 +1,34 @@
-"""Figure recipes: the kinds of the paper's figures for a mesh, and the study's plots, built from
-the library's pieces (:mod:`o3dheat.geometry.sampling`, :mod:`o3dheat.spectral.kernel`, :mod:`o3dheat.topology`, ...)
-and drawn by :mod:`o3dheat.visualization.plot`. Each recipe writes PNGs into a folder and says what they show.
+"""Figure recipes, each writing PNGs and an ``index.md`` into a folder: :func:`paper_figures` (the
+kinds of the paper's Figs. 1–7 for a mesh), :func:`track_figures` (critical points followed across
+scales), :func:`study_figures` (a robustness study's charts).
+
+They are built from the library's pieces (:mod:`o3dheat.geometry.sampling`,
+:mod:`o3dheat.spectral.kernel`, :mod:`o3dheat.topology`, ...) and drawn by
+:mod:`o3dheat.visualization.plot` and :mod:`o3dheat.visualization.charts`; each ``index.md`` says
+what its figures show.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from o3dheat import checks
 from o3dheat.errors import MeshError
-from o3dheat.geometry import as_arrays, check_mesh
+from o3dheat.geometry import as_arrays, check_mesh, decimate, prepare, transfer
 from o3dheat.io import atomic_write, atomic_write_text
+from o3dheat.spectral import HeatFlow, HeatKernel, diffuse, eigensolve, heat_flow, heat_kernel
+from o3dheat.topology import Surface, feature_driven, persistence, simplify_critical_points, track_critical_points
+from o3dheat.topology import scale_space as hierarchy
 
 from . import _layout, _panels, charts, plot
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from o3dheat.typing import FieldLike, MeshLike, PathLike
 
 __all__ = ["paper_figures", "track_figures", "study_figures"]
 
@@ -25,8 +41,9 @@ def _save(fig, path):
     atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=100))
 
 
-def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", max_faces=30000, up="z",
-                  tracks=False):
+def paper_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None, k: int = 100, noise: float = 0.1,
+                  seed: int = 0, name: str = "mesh", max_faces: int = 30000, up: str = "z",
+                  tracks: bool = False) -> Path:
     """The kinds of the paper's Figs. 1–7 for one mesh, as PNGs with an ``index.md``; Fig. 1 also
     with the full heat kernel (:class:`o3dheat.HeatFlow`), whose hierarchy the truncation hides.
 
@@ -72,28 +89,33 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     (Skipped in the test run, which draws them in ``tests/visualization/test_figures.py``: ten figures take
     a few seconds.)
     """
-    from pathlib import Path
-
-    from o3dheat.geometry import decimate, transfer
-    from o3dheat.spectral import HeatFlow, HeatKernel, diffuse, eigensolve, heat_kernel
-    from o3dheat.topology import Surface, feature_driven, persistence, simplify_critical_points
-    from o3dheat.topology import scale_space as hierarchy
-
     out = Path(out)
     V, F, f = _prepared(mesh, field, noise, seed, max_faces, up, out)
     k = min(k, len(V) - 2)
     K = HeatKernel(eigensolve((V, F), k=k))
     K10 = HeatKernel(eigensolve((V, F), k=min(10, k)))
+    S = Surface.from_faces(len(V), F, V)
+    entries = _fig1(V, F, f, S, K, k, out, name, up)
+    entries += _fig2(V, F, f, S, K, K10, k, out, name, up)
+    irregular, more = _fig3(V, F, f, k, out, name, up)
+    entries += more + _fig4_5(*irregular, out, name, up)
+    entries += _fig6_7(V, F, S, f, K, out, name, up)
+    if tracks:
+        entries += _track_entries(V, F, f, out, name, up, t_max=K.scales(2, grid="log")[-1])
+    return _index(out, name, f"{len(V)} vertices, {len(F)} faces; k = {k}", field, noise, seed, entries)
+
+
+def _count(S, g):
+    """The critical points of ``g`` as the panels draw them: none of rounding errors on a part
+    where ``g`` is constant."""
+    return sum(plot.drawn_critical_points(S, g).counts)
+
+
+def _fig1(V, F, f, S, K, k, out, name, up):
+    """Fig. 1: level sets and critical points across scales, and their variation; the same times
+    with the full kernel (the hierarchy the truncation hides); the log grid's whole range."""
     t = K.scales()
     entries = []
-
-    S = Surface.from_faces(len(V), F, V)
-
-    def count(g):  # as the panels draw them: none of rounding errors on a part where g is constant
-        return sum(plot.drawn_critical_points(S, g).counts)
-
-    # Fig. 1: level sets and critical points across scales, and their variation; the same times
-    # with the full kernel (the hierarchy the truncation hides); the log grid's whole range
     ss = hierarchy(K, f, stop="linf")
     se = hierarchy(HeatFlow((V, F)), f, scales=t, stop="linf")
     sl = hierarchy(K, f, scales=K.scales(10, grid="log"))
@@ -121,25 +143,33 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
     )
     cols = [0, 4, 9]
     for h, scales_png, variation_png, label, suptitle, chart, about_scales, about_chart in panels:
-        titles = [f"f ({count(f)} critical points)"] + [
-            f"{label(i)} ({count(h.fields[:, i])} c.p., ε∞ {h.errors[i]:.3f})" for i in cols]
+        titles = [f"f ({_count(S, f)} critical points)"] + [
+            f"{label(i)} ({_count(S, h.fields[:, i])} c.p., ε∞ {h.errors[i]:.3f})" for i in cols]
         _save(_fields(up, (V, F), np.c_[f, h.fields[:, cols]], titles=titles, ncols=4, label="f, Φ_t f",
                      suptitle=suptitle), out / scales_png)
         _save(charts.scale_space(h, title=chart), out / variation_png)
         entries += [(scales_png, about_scales), (variation_png, about_chart)]
-    # Fig. 2: 10 vs k eigenpairs at two scales
+    return entries
+
+
+def _fig2(V, F, f, S, K, K10, k, out, name, up):
+    """Fig. 2: 10 vs k eigenpairs at two scales."""
     panels, titles = [], []
     for KK, kk in ((K10, K10.spectrum.k), (K, k)):
         for i in (0, 9):
             ti = KK.scales()[i]
             g = KK.smooth(f, ti)
             panels.append(g)
-            titles.append(f"k = {kk}, t{i + 1}: ε∞ {KK.error(f, ti):.3f}, {count(g)} c.p.")
+            titles.append(f"k = {kk}, t{i + 1}: ε∞ {KK.error(f, ti):.3f}, {_count(S, g)} c.p.")
     _save(_fields(up, (V, F), np.stack(panels, 1), titles=titles, ncols=4, label="Φ_t f",
                  suptitle=f"{name}: 10 vs {k} eigenpairs (Fig. 2)"), out / "fig2_eigenpairs.png")
-    entries.append(("fig2_eigenpairs.png", f"10 vs {k} eigenpairs at the first and last scale: more "
-                    "eigenfunctions, smaller ε∞ and more critical points"))
-    # Fig. 3: an irregular sampling; the Voronoi kernel (7) and the iterative scheme (8)
+    return [("fig2_eigenpairs.png", f"10 vs {k} eigenpairs at the first and last scale: more "
+             "eigenfunctions, smaller ε∞ and more critical points")]
+
+
+def _fig3(V, F, f, k, out, name, up):
+    """Fig. 3: an irregular sampling; the Voronoi kernel (7) and the iterative scheme (8).
+    Returns ``((Vi, Fi, Ki, ki), entries)``: the sampling and its weighted kernel, for Figs. 4-5."""
     Vi, Fi = decimate((V, F), reduction=0.7).arrays
     fi = transfer(f, (V, F), Vi)
     ki = min(k, len(Vi) - 2)
@@ -153,9 +183,12 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
                          "scheme (8), t5", "scheme (8), 5 t5"],
                  suptitle=f"{name}: irregular sampling ({len(Vi)} vertices) (Figs. 3, 6)"),
           out / "fig3_irregular.png")
-    entries.append(("fig3_irregular.png", "a curvature-adaptive decimation: the Voronoi kernel of eq. (7), "
-                    "the weighted kernel and the implicit time stepping of eq. (8) at two times"))
-    # Figs. 4-5: canonic basis functions, linear vs weighted kernel, on the irregular sampling
+    return (Vi, Fi, Ki, ki), [("fig3_irregular.png", "a curvature-adaptive decimation: the Voronoi kernel of "
+                               "eq. (7), the weighted kernel and the implicit time stepping of eq. (8) at two times")]
+
+
+def _fig4_5(Vi, Fi, Ki, ki, out, name, up):
+    """Figs. 4-5: canonic basis functions, linear vs weighted kernel, on the irregular sampling."""
     Kl = heat_kernel((Vi, Fi), ki, variant="linear")  # its own spectrum (L x = λ x) and its own scales
     a = {"x": 0, "y": 1, "z": 2}[up]  # the vertex nearest the top of the drawing (half-way up from the centre)
     c = int(np.argmin(np.linalg.norm(Vi - Vi.mean(0) - np.eye(3)[a] * np.ptp(Vi[:, a]) / 2, axis=1)))
@@ -165,9 +198,13 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
                  titles=["linear kernel, t1", "linear kernel, t5", "weighted kernel, t1", "weighted kernel, t5"],
                  suptitle=f"{name}: canonic basis Φ_t(e_i) on the irregular sampling (Figs. 4, 5)"),
           out / "fig4_5_canonic.png")
-    entries.append(("fig4_5_canonic.png", "the canonic basis function of one vertex with the linear (B := I) and "
-                    "the weighted kernel, each at its own scales t1 and t5 (t_i = (i/10)/λ_k of its spectrum)"))
-    # Figs. 6-7: feature-driven approximation with all vs simplified critical points
+    return [("fig4_5_canonic.png", "the canonic basis function of one vertex with the linear (B := I) and "
+             "the weighted kernel, each at its own scales t1 and t5 (t_i = (i/10)/λ_k of its spectrum)")]
+
+
+def _fig6_7(V, F, S, f, K, out, name, up):
+    """Figs. 6-7: feature-driven approximation with all vs simplified critical points."""
+    t = K.scales()
     d = persistence(S, f)
     A_all = simplify_critical_points(S, f, diagram=d)
     A_few = simplify_critical_points(S, f, keep_fraction=0.1, diagram=d)
@@ -178,11 +215,8 @@ def paper_figures(mesh, out, field=None, k=100, noise=0.1, seed=0, name="mesh", 
                  titles=["f", f"A = all {len(A_all)} critical points", f"A = δ-simplified ({pct:.0f}%)"],
                  suptitle=f"{name}: feature-driven approximation Φ_t(pr_A f), t1 (Figs. 6, 7)"),
           out / "fig6_7_feature.png")
-    entries.append(("fig6_7_feature.png", "the global component Φ_t(pr_A f) with A all the critical points of f "
-                    f"and A the most persistent ones (10% of the pairs, {pct:.0f}% of the points)"))
-    if tracks:
-        entries += _track_entries(V, F, f, out, name, up, t_max=K.scales(2, grid="log")[-1])
-    return _index(out, name, f"{len(V)} vertices, {len(F)} faces; k = {k}", field, noise, seed, entries)
+    return [("fig6_7_feature.png", "the global component Φ_t(pr_A f) with A all the critical points of f "
+             f"and A the most persistent ones (10% of the pairs, {pct:.0f}% of the points)")]
 
 
 def _index(out, name, about, field, noise, seed, entries):
@@ -199,8 +233,6 @@ def _prepared(mesh, field, noise, seed, max_faces, up, out):
     """``(V, F, f)``: the mesh and field the figures are made of (the default field: the height
     along the longest axis plus noise), repaired (said), prepared, decimated to ``max_faces``;
     ``out`` created."""
-    from o3dheat.geometry import decimate, prepare, transfer
-
     if up not in ("x", "y", "z"):
         raise MeshError(f"up must be 'x', 'y' or 'z', got {up!r}")
     V0, F0 = as_arrays(mesh)
@@ -234,8 +266,6 @@ TRACK_LONGEST = 60
 def _track_times(V, F, count, t_max=None):
     """``t = 0`` (the field itself) and ``count - 1`` log-spaced times from the squared mean edge
     length (smoothing over about an edge) to ``2 ln(100) / λ_2`` (Φ_t f nearly constant)."""
-    from o3dheat.spectral import HeatKernel, eigensolve
-
     if t_max is None:
         parts = int(_panels.vertex_parts(len(V), F).max()) + 1
         t_max = HeatKernel(eigensolve((V, F), k=min(parts + 3, len(V) - 2))).scales(2, grid="log")[-1]
@@ -248,9 +278,6 @@ def _track_times(V, F, count, t_max=None):
 
 def _track_entries(V, F, f, out, name, up, t_max=None, count=TRACK_SCALES, longest=TRACK_LONGEST):
     """Draw the tracks' two figures of ``f``'s heat flow into ``out``; their index entries."""
-    from o3dheat.spectral import heat_flow
-    from o3dheat.topology import track_critical_points
-
     t = _track_times(V, F, count, t_max)
     Ft = heat_flow((V, F), f, t)
     parts = _panels.vertex_parts(len(V), F)
@@ -286,8 +313,9 @@ def _track_entries(V, F, f, out, name, up, t_max=None, count=TRACK_SCALES, longe
                                   if born_flat.any() else ""))]
 
 
-def track_figures(mesh, out, field=None, noise=0.1, seed=0, name="mesh", max_faces=30000, up="z",
-                  count=TRACK_SCALES, longest=TRACK_LONGEST):
+def track_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None, noise: float = 0.1, seed: int = 0,
+                  name: str = "mesh", max_faces: int = 30000, up: str = "z", count: int = TRACK_SCALES,
+                  longest: int = TRACK_LONGEST) -> Path:
     """The critical points of a field's heat flow followed across scales: the tracks on the
     surface (:func:`o3dheat.visualization.plot.tracks`, ``tracks_paths.png``) and their lifetimes
     (:func:`o3dheat.visualization.charts.lifetime_chart`, ``tracks_lifetimes.png``), with an ``index.md``.
@@ -319,8 +347,6 @@ def track_figures(mesh, out, field=None, noise=0.1, seed=0, name="mesh", max_fac
     >>> sorted(p.name for p in out.glob("*.png"))
     ['tracks_lifetimes.png', 'tracks_paths.png']
     """
-    from pathlib import Path
-
     count = checks.count(count, "count", maximum=1000)
     if count < 3:
         raise MeshError(f"count must be at least 3 scales, got {count}")
@@ -331,7 +357,7 @@ def track_figures(mesh, out, field=None, noise=0.1, seed=0, name="mesh", max_fac
     return _index(out, name, f"{len(V)} vertices, {len(F)} faces", field, noise, seed, entries)
 
 
-def study_figures(table, out):
+def study_figures(table: pd.DataFrame, out: PathLike) -> list[Path]:
     """One plot per descriptor of a robustness study (:func:`o3dheat.visualization.charts.study`), as
     ``study_<descriptor>.png`` in ``out``.
 
@@ -355,8 +381,6 @@ def study_figures(table, out):
     >>> [p.name for p in figures.study_figures(pd.DataFrame(rows), tempfile.mkdtemp())]
     ['study_hks_density.png']
     """
-    from pathlib import Path
-
     ok = table[table["error"].fillna("") == ""]
     written = []
     for d in sorted(ok["descriptor"].unique()):

@@ -6,22 +6,15 @@ reachable here too.
 
 Notes
 -----
-Surfaces are rendered with Open3D's offscreen renderer (Filament, software Vulkan through Mesa's
-lavapipe: no display and no GPU needed), with depth: level sets and critical points are drawn on
-the visible surface and hidden behind it. The renders are composed into a
-``matplotlib.figure.Figure`` with a colorbar named after the field and a legend of the critical
-points (maxima red, minima blue, saddles green, as in the paper). Charts are plain matplotlib.
-Nothing is shown on screen: save a figure with ``fig.savefig("name.png")``. Figure recipes (the
-paper's figures, the demo's) are in :mod:`o3dheat.visualization.figures`.
-
-The renderer needs the system packages ``libvulkan1`` and ``mesa-vulkan-drivers`` (Debian names;
-``scripts/setup.sh`` installs them). Where it cannot start, the functions warn once
-(``RuntimeWarning``) and draw with matplotlib's 3D axes instead, which cannot hide what is behind
-the surface. ``renderer="matplotlib"`` (or the environment variable ``O3DHEAT_RENDERER=matplotlib``)
-picks that drawing on purpose, without the warning.
-
-One renderer is kept per process (Open3D cannot destroy one safely); call these functions from
-one thread at a time.
+Surfaces are real 3D renders by Open3D's offscreen renderer (headless: software Vulkan, the system
+packages ``libvulkan1`` and ``mesa-vulkan-drivers``), level sets and critical points (maxima red,
+minima blue, saddles green, as in the paper) drawn on the visible surface and hidden behind it,
+with a colorbar named after the field and a legend. Where the renderer cannot start, the
+functions warn once (``RuntimeWarning``) and draw with matplotlib's 3D axes, which cannot hide
+what is behind the surface; ``renderer="matplotlib"`` (or ``O3DHEAT_RENDERER=matplotlib``) picks
+them quietly. Nothing is shown on screen: save a figure with ``fig.savefig("name.png")``. One
+renderer is kept per process: call these functions from one thread at a time. More in
+``docs/details/figures.md``; the recipes are in :mod:`o3dheat.visualization.figures`.
 """
 
 from __future__ import annotations
@@ -341,16 +334,6 @@ def render(mesh: MeshLike, f: FieldLike, level_sets: Levels = 10, critical_point
 
 
 
-def _washed(cmap):
-    """The colormap mixed halfway with white: the surface under the tracks, which keep the pure
-    critical-point colours (a saturated colormap's red and blue ends would hide them)."""
-    from matplotlib import colormaps
-    from matplotlib.colors import ListedColormap
-
-    base = colormaps[cmap](np.linspace(0.0, 1.0, 256))[:, :3]
-    return ListedColormap(0.45 + 0.55 * base, name=f"{cmap}_washed")
-
-
 def tracks(mesh: MeshLike, tracks: Tracks, f: FieldLike | None = None, longest: int | None = None,
            view: tuple[float, float] = (20.0, -60.0), cmap: str = "Greys", title: str | None = None,
            size: float = 6.0, up: str = "z", label: str = "f", renderer: str = "auto") -> Figure:
@@ -486,7 +469,7 @@ def _ends_panel(tr, P, chosen, kinds, V, F, g, parts, cmap):
     else:
         flat = _panels.flat_parts(g, parts)[np.maximum(parts, 0)] & (parts >= 0)
         lo, hi = _layout.color_range(g, flat)
-        colormap = _washed(cmap)
+        colormap = _layout.washed(cmap)
     ends = P[chosen, tr.last[chosen]] if len(chosen) else np.zeros((0, 3))
     end_vertex = cKDTree(V).query(ends)[1] if len(ends) else np.zeros(0, np.int64)
     counts = {k: int((kinds == k).sum()) for k in _layout.KIND_COLORS}
