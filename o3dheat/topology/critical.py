@@ -44,7 +44,7 @@ from o3dheat._jit import any_compiled
 from o3dheat.typing import FieldLike, MeshLike
 
 from . import _loops
-from .persistence import persistence
+from .diagrams import persistence
 from .surface import Surface
 
 __all__ = ["CriticalPoints", "critical_points", "REGULAR", "MINIMUM", "SADDLE", "MAXIMUM", "warm_up",

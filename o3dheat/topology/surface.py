@@ -1,7 +1,7 @@
 """The combinatorial surface of a triangle mesh, checked to be a 2-manifold: :class:`Surface`.
 
 Build it once and pass it instead of the mesh to analyse many fields on one mesh
-(:func:`o3dheat.topology.critical.critical_points`, :func:`o3dheat.topology.persistence.persistence`, ...).
+(:func:`o3dheat.topology.critical.critical_points`, :func:`o3dheat.topology.diagrams.persistence`, ...).
 
 Notes
 -----

@@ -33,7 +33,7 @@ from o3dheat.typing import FieldLike, MeshLike, TimesLike
 
 from . import _loops
 from .critical import critical_points
-from .persistence import persistence
+from .diagrams import persistence
 from .surface import Surface
 
 __all__ = ["Tracks", "track_critical_points", "KINDS"]

@@ -1,4 +1,4 @@
-"""o3dheat.topology.persistence: persistence pairs and simplification (PAPER.md rows P15, P16)."""
+"""o3dheat.topology.diagrams: persistence pairs and simplification (PAPER.md rows P15, P16)."""
 
 import numpy as np
 import pytest
