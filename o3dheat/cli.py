@@ -476,6 +476,10 @@ def _study(args):
     return 0
 
 
+#: Dask's records below WARNING dropped, the others on one line (see --verbose)
+_QUIET_DASK = DaskLogs(logging.WARNING)
+
+
 def main(argv=None):
     """Entry point of the ``o3dheat`` command; returns the exit code.
 
@@ -491,9 +495,8 @@ def main(argv=None):
     if not args.verbose:  # Dask logs every worker start and stop at INFO, on loggers of its own levels
         for name in ("distributed", "dask"):
             logging.getLogger(name).setLevel(logging.WARNING)
-        quiet = DaskLogs(logging.WARNING)  # below WARNING dropped, the rest on one line
         for handler in logging.getLogger().handlers:
-            handler.addFilter(quiet)
+            handler.addFilter(_QUIET_DASK)  # one instance: a handler holds it once, however often main runs
     command = COMMANDS.get(args.command, (None, None, None))[2]
     if command is None:
         p.print_help()
