@@ -1,27 +1,18 @@
-"""The heat kernels of the paper and what is computed with them: the feature map Φ_t, heat kernel
-signatures, the paper's scales, approximation errors, the canonic basis and the inverse.
+"""The heat kernels of the paper and what is computed with them: :class:`HeatKernel`, :func:`heat_kernel`.
 
+Entry points: :func:`heat_kernel` (a mesh's kernel), :class:`HeatKernel` (on a
+:class:`~o3dheat.Spectrum`: the feature map Φ_t, heat kernel signatures, the paper's scales,
+approximation errors, the canonic basis, the inverse, truncation bounds). The variants and the
+other lists (:data:`VARIANTS`, :data:`GRIDS`, :data:`HKS_FORMS`, :data:`NORMALIZATIONS`) are
+defined once in :mod:`o3dheat.spectral._variants` and reached here.
+
+Notes
+-----
 Time follows the paper: ``K_t = X D_t Xᵀ W`` with ``D_t = diag(exp(-φ(λ_i) t / 2))`` (eq. (6)),
 ``φ(λ) = λ`` unless a transfer function is given (§2.3), and ``λ_i`` divided by the first non-zero
 eigenvalue when ``normalize="lambda2"`` (§2.2: the kernel is then scale invariant). Peers such as
-LaPy and Sun et al. write ``exp(-λ t)``: ``t_paper = 2 t_peer``.
-
-Each kernel variant is the heat kernel of its own eigenproblem ``L x = λ W x`` (its spectrum's
-mass ``W``, eigenvectors ``W``-orthonormal): ``K_t = X D_t Xᵀ W``. So every variant keeps
-constants (``K_t 1 = 1``), conserves the total ``1ᵀ W f``, is a semigroup
-(``K_s K_t = K_{s+t}``) and tends to the ``W``-weighted mean as ``t → ∞``. The variants
-(:data:`VARIANTS`, defined here once for the whole package):
-
-* "weighted" — the paper's weighted linear FEM kernel (§2.1): ``W = B``, the consistent FEM mass;
-* "linear" — the paper's linear FEM kernel, "B := I" (§2.1): eigenpairs of ``L x = λ x``,
-  ``K_t = X D_t Xᵀ``;
-* "voronoi" — eq. (7) (§2.3) as Sun et al. compute it: eigenpairs of ``L x = λ A x`` with
-  ``A = diag(a)`` the mixed Voronoi areas of Meyer et al., and ``K_t = X D_t Xᵀ A``;
-* "lumped" — common practice: ``W = diag(row sums of B)``, the barycentric lumped mass.
-
-A kernel is built on a spectrum computed with its mass (:func:`heat_kernel` does both steps);
-pairing a variant with another spectrum is refused, since ``X D_t Xᵀ W`` with ``W`` other than the
-spectrum's mass is not a heat kernel (it does not even keep constants).
+LaPy and Sun et al. write ``exp(-λ t)``: ``t_paper = 2 t_peer``. Each variant is the heat kernel of
+its own eigenproblem ``L x = λ W x`` (see :mod:`o3dheat.spectral._variants`).
 
 Everything works on the truncated spectrum (``k`` eigenpairs): ``Φ_t f = X_k D_t X_kᵀ W f`` costs
 ``O(k n)`` per scale and field.
@@ -29,164 +20,35 @@ Everything works on the truncated spectrum (``k`` eigenpairs): ``Φ_t f = X_k D_
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from functools import cached_property
 
 import numpy as np
 
 from o3dheat import checks
 from o3dheat.errors import MeshError, SolverError
+from o3dheat.typing import FieldLike, MeshLike, TimesLike
 
+from . import _truncation, spectrum
+from ._variants import (
+    GRIDS,
+    HKS_DEFAULT,
+    HKS_FORMS,
+    NORMALIZATIONS,
+    VARIANTS,
+    first_nonzero,
+    mass_of,
+    transfer_function,
+    variant_of_mass,
+)
 from .spectrum import Spectrum, all_zero
 
 __all__ = ["HeatKernel", "heat_kernel", "VARIANTS", "GRIDS", "HKS_FORMS", "HKS_DEFAULT", "NORMALIZATIONS",
            "mass_of", "variant_of_mass", "first_nonzero", "transfer_function"]
 
-#: kernel variant -> (mass of its eigenproblem, a key of :data:`o3dheat.spectral.fem.MASS_KINDS`; what it is
-#: in one line). The one definition used by the filters, the command, the studies and the figures:
-#: a variant added here is reachable from the ``hks``, ``heat_smooth`` and ``feature_approx``
-#: filters, ``o3dheat apply`` and ``o3dheat study`` without other edits (a new mass kind is added to
-#: :mod:`o3dheat.spectral.fem`).
-VARIANTS = {
-    "weighted": ("consistent", "the paper's kernel X D_t Xᵀ B, B the consistent FEM mass (§2.1)"),
-    "linear": ("identity", "the paper's B := I kernel X D_t Xᵀ, eigenpairs of L x = λ x (§2.1)"),
-    "voronoi": ("voronoi", "eq. (7): X D_t Xᵀ A, eigenpairs of L x = λ A x, A = Voronoi areas (§2.3)"),
-    "lumped": ("lumped", "X D_t Xᵀ D, eigenpairs of L x = λ D x, D = lumped (row-sum) mass"),
-}
-#: scale grids of :meth:`HeatKernel.scales`
-GRIDS = ("paper", "log")
-#: heat kernel signature forms of :meth:`HeatKernel.hks`; the default everywhere is "density"
-HKS_FORMS = ("density", "paper")
-HKS_DEFAULT = "density"
-#: eigenvalue normalisations of :class:`HeatKernel` (``normalize=``): None, or "lambda2" (divided by
-#: the first non-zero eigenvalue: the scale-invariant kernel, §2.2)
-NORMALIZATIONS = (None, "lambda2")
 
-
-def first_nonzero(eigenvalues):
-    """The first non-zero of ascending eigenvalues (above 1e-8 of the largest): ``λ_2`` of a
-    connected mesh, the divisor of ``normalize="lambda2"``.
-
-    Raises
-    ------
-    MeshError
-        Every eigenvalue is zero (only constants per component).
-
-    Examples
-    --------
-    >>> from o3dheat.spectral.kernel import first_nonzero
-    >>> first_nonzero([1e-15, 2.0, 6.0])
-    2.0
-    """
-    lam = np.asarray(eigenvalues, dtype=np.float64)
-    tol = 1e-8 * max(float(np.max(np.abs(lam))), 1e-300)
-    nz = lam[lam > tol]
-    if nz.size == 0:
-        raise MeshError("normalize='lambda2' needs a non-zero eigenvalue: compute more eigenpairs")
-    return float(nz[0])
-
-
-def transfer_function(transfer):
-    """The transfer function φ of ``transfer`` (§2.3) as a checked, vectorised callable; None for None.
-
-    Parameters
-    ----------
-    transfer : None, callable or sequence of float
-        A vectorised callable ``φ(λ)``, or polynomial coefficients in increasing degree
-        ``c0 + c1 λ + c2 λ² ...``.
-
-    Returns
-    -------
-    callable or None
-        ``λ (k,) -> φ(λ) (k,)``, raising :class:`~o3dheat.MeshError` when φ does not map the
-        eigenvalues to as many finite values.
-
-    Examples
-    --------
-    >>> from o3dheat.spectral.kernel import transfer_function
-    >>> transfer_function([0.0, 1.0, 0.5])([0.0, 2.0]).tolist()      # λ + λ²/2
-    [0.0, 4.0]
-    """
-    if transfer is None:
-        return None
-    if callable(transfer):
-        fn = transfer
-    else:
-        try:
-            coef = np.asarray(transfer, dtype=np.float64)
-        except (TypeError, ValueError):
-            coef = np.zeros((0, 0))
-        if coef.ndim != 1 or coef.size == 0 or not np.all(np.isfinite(coef)):
-            raise MeshError("transfer must be a callable or a 1-D sequence of finite polynomial coefficients")
-
-        def fn(lam):
-            return np.polynomial.polynomial.polyval(lam, coef)
-
-        fn.coefficients = coef
-
-    def phi(lam):
-        lam = np.asarray(lam, dtype=np.float64)
-        try:
-            out = np.asarray(fn(lam), dtype=np.float64)
-        except (TypeError, ValueError) as e:
-            raise MeshError(f"the transfer function failed on the eigenvalues ({type(e).__name__}: {e})") from e
-        if out.shape != lam.shape or not np.all(np.isfinite(out)):
-            raise MeshError("the transfer function must map the eigenvalues to as many finite values")
-        return out
-
-    phi.coefficients = getattr(fn, "coefficients", None)
-    return phi
-
-
-def _unknown_variant(variant):
-    return MeshError(f"unknown kernel variant {variant!r}: use one of {', '.join(VARIANTS)}")
-
-
-def mass_of(variant):
-    """The mass kind of a kernel variant's eigenproblem (:data:`VARIANTS`).
-
-    Parameters
-    ----------
-    variant : str
-        A key of :data:`VARIANTS`.
-
-    Returns
-    -------
-    str
-        A key of :data:`o3dheat.spectral.fem.MASS_KINDS`.
-
-    Raises
-    ------
-    MeshError
-        An unknown variant (the message lists them).
-
-    Examples
-    --------
-    >>> from o3dheat.spectral.kernel import mass_of
-    >>> mass_of("weighted"), mass_of("linear")
-    ('consistent', 'identity')
-    """
-    if not isinstance(variant, str) or variant not in VARIANTS:
-        raise _unknown_variant(variant)
-    return VARIANTS[variant][0]
-
-
-def variant_of_mass(mass_kind):
-    """The variant whose eigenproblem uses ``mass_kind`` (the first in :data:`VARIANTS`; "given"
-    for operators built elsewhere, :func:`o3dheat.spectral.spectrum.eigensolve_operators`).
-
-    Examples
-    --------
-    >>> from o3dheat.spectral.kernel import variant_of_mass
-    >>> variant_of_mass("voronoi"), variant_of_mass("given")
-    ('voronoi', 'given')
-    """
-    for name, (mass, _) in VARIANTS.items():
-        if mass == mass_kind:
-            return name
-    return "given"
-
-
-def heat_kernel(mesh, k=100, variant="weighted", normalize=None, transfer=None, **eigensolve_options):
+def heat_kernel(mesh: MeshLike, k: int = 100, variant: str = "weighted", normalize: str | None = None,
+                transfer: Callable | Sequence[float] | None = None, **eigensolve_options) -> HeatKernel:
     """The heat kernel ``variant`` of a mesh: its eigenproblem solved with the right mass, then
     :class:`HeatKernel`.
 
@@ -215,13 +77,13 @@ def heat_kernel(mesh, k=100, variant="weighted", normalize=None, transfer=None, 
     >>> K.spectrum.mass_kind, bool(np.allclose(K.smooth(np.ones(K.n), 3.0), 1.0))
     ('identity', True)
     """
-    from .spectrum import eigensolve
-
     mass = mass_of(variant)
     if "mass" in eigensolve_options:
         raise MeshError("heat_kernel chooses the mass from the variant: do not pass mass=")
-    spec = eigensolve(mesh, k=k, mass=mass, **eigensolve_options)
+    spec = spectrum.eigensolve(mesh, k=k, mass=mass, **eigensolve_options)  # looked up at the call: patchable
     return HeatKernel(spec, variant=variant, normalize=normalize, transfer=transfer)
+
+
 
 
 class HeatKernel:
@@ -255,7 +117,8 @@ class HeatKernel:
     ((762, 10), True)
     """
 
-    def __init__(self, spectrum, variant=None, normalize=None, transfer=None):
+    def __init__(self, spectrum: Spectrum, variant: str | None = None, normalize: str | None = None,
+                 transfer: Callable | Sequence[float] | None = None):
         if not isinstance(spectrum, Spectrum):
             raise MeshError(f"HeatKernel needs a Spectrum (from o3dheat.eigensolve), got {type(spectrum).__name__}")
         own = variant_of_mass(spectrum.mass_kind)
@@ -284,7 +147,7 @@ class HeatKernel:
 
     # ----------------------------------------------------------------------------------- helpers
     @property
-    def n(self):
+    def n(self) -> int:
         """Number of vertices.
 
         Examples
@@ -307,7 +170,7 @@ class HeatKernel:
     def _field(self, f, name="f"):
         return checks.field(f, self.n, name)
 
-    def filter_factors(self, t):
+    def filter_factors(self, t: TimesLike) -> np.ndarray:
         """Filter factors ``exp(-φ(λ_i) t / 2)``.
 
         Parameters
@@ -357,7 +220,7 @@ class HeatKernel:
         return out
 
     # ----------------------------------------------------------------------------------- the map
-    def coefficients(self, f):
+    def coefficients(self, f: FieldLike) -> np.ndarray:
         """Spectral coefficients ``Xᵀ W f`` (for "weighted": ``⟨f, x_i⟩_B``), shape (k,) or (k, c).
 
         Examples
@@ -371,7 +234,7 @@ class HeatKernel:
         f, p = self._unit(self._field(f))
         return self._back(self.spectrum.eigenvectors.T @ self._weigh(f), p, "the spectral coefficients")
 
-    def smooth(self, f, t, return_bound=False):
+    def smooth(self, f: FieldLike, t: TimesLike, return_bound: bool = False):
         """Feature map ``Φ_t f = X D_t Xᵀ W f`` (eq. (6), truncated to k eigenpairs).
 
         Parameters
@@ -423,7 +286,7 @@ class HeatKernel:
 
     __call__ = smooth
 
-    def hks(self, t, form=HKS_DEFAULT, return_bound=False):
+    def hks(self, t: TimesLike, form: str = HKS_DEFAULT, return_bound: bool = False):
         """Heat kernel signature at time(s) t.
 
         Parameters
@@ -477,34 +340,9 @@ class HeatKernel:
         h = P @ D
         if not return_bound:
             return h
-        w = self.spectrum.inverse_mass_bound
-        if w is None:  # a Spectrum made by hand: bounded from its mass where that is possible
-            from .spectrum import inverse_mass_bound
+        return h, _truncation.hks_bound(self, t, form, self._WX)
 
-            w = inverse_mass_bound(self.spectrum.mass, self.spectrum.mass_kind)
-        if w is None:
-            raise MeshError("no truncation bound for this spectrum: its mass is not diagonal nor the consistent "
-                            "FEM mass (the diagonal of its inverse is not bounded)")
-        decay = np.exp(-0.5 * self._top_rate() * checks.times(t))
-        tail_x = np.maximum(w - np.einsum("ij,ij->i", X, X), 0.0)
-        if form == "density":
-            tail = tail_x
-        else:
-            tail_w = np.maximum(self.spectrum.mass.diagonal() - np.einsum("ij,ij->i", self._WX, self._WX), 0.0)
-            tail = np.sqrt(tail_x * tail_w)
-        with np.errstate(invalid="ignore"):  # an unbounded tail (a vertex of zero mass) times exp(-inf)
-            bound = np.multiply.outer(tail, decay)
-        return h, np.where(np.isnan(bound), 0.0, bound)
-
-    def _top_rate(self):
-        """The largest rate φ(λ_k), a lower bound of every dropped rate when φ increases."""
-        phi = transfer_function(self.transfer)
-        if phi is not None and (phi.coefficients is None or np.any(phi.coefficients < 0)):
-            raise MeshError("the truncation bound needs a transfer function that increases: polynomial "
-                            "coefficients >= 0 (a callable or a negative coefficient cannot be certified)")
-        return float(np.max(self.rates))
-
-    def scales(self, count=10, grid="paper"):
+    def scales(self, count: int = 10, grid: str = "paper") -> np.ndarray:
         """Times for a scale sweep, ``count`` of them, increasing.
 
         * ``grid="paper"``: the paper's ``t_i = (i / count) / λ_k``, ``i = 1..count`` (§2.3). With
@@ -554,7 +392,7 @@ class HeatKernel:
             hi = 10.0 * lo
         return np.geomspace(lo, hi, count) if count > 1 else np.array([lo])
 
-    def error(self, f, t):
+    def error(self, f: FieldLike, t: TimesLike) -> float | np.ndarray:
         """Relative approximation error ``ε∞ = ‖f − Φ_t f‖∞ / ‖f‖∞`` (0 when f = 0).
 
         Parameters
@@ -586,7 +424,7 @@ class HeatKernel:
         return d / nf if nf > 0 else d * 0.0
 
     # ----------------------------------------------------------------------- basis and inverse
-    def canonic_basis(self, i, t):
+    def canonic_basis(self, i: int | Sequence[int], t: float) -> np.ndarray:
         """Canonic basis function(s) ``Φ_t(e_i) = X D_t Xᵀ W e_i`` (§3.2).
 
         Parameters
@@ -619,7 +457,7 @@ class HeatKernel:
         coef = self._WX[idx].T  # (k,) or (k, c)
         return self.spectrum.eigenvectors @ (D[:, None] * coef if coef.ndim == 2 else D * coef)
 
-    def inverse(self, f, t):
+    def inverse(self, f: FieldLike, t: float) -> np.ndarray:
         """Inverse feature map ``Φ_t^{-1}`` on the spectral span (§3.2): ``α`` with ``Φ_t α = P f``.
 
         ``P`` is the ``W``-orthogonal projection onto the span of the k eigenvectors, and
@@ -667,79 +505,6 @@ class HeatKernel:
         return self._back(self.spectrum.eigenvectors @ (Dinv[:, None] * g if g.ndim == 2 else Dinv * g), p,
                           "the inverse")
 
-    # ------------------------------------------------------------------ truncation
-    def truncation_bound(self, f, t):
-        """Upper bound of what dropping the eigenpairs above ``λ_k`` costs at time t.
-
-        With ``P`` the W-orthogonal projection on the k eigenvectors (``W`` the spectrum's mass),
-        the full-spectrum map satisfies ``‖Φ_t f − Φ_t^{(k)} f‖_W <= exp(−φ(λ_k) t / 2) ‖f − P f‖_W``
-        (every dropped eigenvalue is >= λ_k and φ increasing). Returned relative to ``‖f‖_W``.
-        A rigorous bound for every variant (refused for a transfer function not known to increase:
-        only polynomials with non-negative coefficients are).
-
-        Parameters
-        ----------
-        f : (n,) array_like
-            The field, one value per vertex.
-        t : float or (T,) array_like
-            Time(s) (paper convention, >= 0): one bound per time.
-
-        Returns
-        -------
-        float or (T,) ndarray
-
-        Examples
-        --------
-        >>> import open3d as o3d, o3dheat
-        >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16)
-        >>> K = o3dheat.heat_kernel(mesh, k=20)
-        >>> b = K.truncation_bound(mesh.vertex.positions.numpy()[:, 0] ** 2, [0.0, 0.1])
-        >>> bool(b[1] < b[0] < 0.01)              # x² is nearly in the span of 20 eigenvectors
-        True
-        """
-        f = self._field(f)
-        B = self.spectrum.mass
-        X = self.spectrum.eigenvectors
-        r = f - X @ (X.T @ (B @ f))
-        nr = np.sqrt(max(float(r @ (B @ r)), 0.0)) if f.ndim == 1 else np.sqrt(np.einsum("ij,ij->j", r, B @ r))
-        nf = np.sqrt(float(f @ (B @ f))) if f.ndim == 1 else np.sqrt(np.einsum("ij,ij->j", f, B @ f))
-        decay = np.exp(-0.5 * self._top_rate() * checks.times(t))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rel = np.where(nf > 0, nr / np.where(nf > 0, nf, 1), 0.0)
-        return np.multiply.outer(rel, decay) if np.ndim(rel) else float(rel) * decay
-
-    def suggest_k(self, t, tol=1e-3):
-        """Estimate how many eigenpairs make the truncation factor ``exp(−φ(λ_k) t/2)`` <= tol.
-
-        Uses Weyl's law (``λ_j`` grows linearly with ``j`` on a surface), with the slope fitted to
-        this spectrum's upper half of eigenvalues. An estimate, not a guarantee.
-
-        Parameters
-        ----------
-        t : float
-            Time (> 0).
-        tol : float
-            Target factor, in (0, 1).
-
-        Returns
-        -------
-        int
-
-        Examples
-        --------
-        >>> import open3d as o3d, o3dheat
-        >>> K = o3dheat.heat_kernel(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16), k=20)
-        >>> K.suggest_k(0.1) < K.suggest_k(0.01)  # small times need more eigenpairs
-        True
-        """
-        t = float(checks.times(t))
-        if t <= 0 or not (0 < tol < 1):
-            raise MeshError("suggest_k needs t > 0 and 0 < tol < 1")
-        need = 2 * np.log(1 / tol) / t  # the rate λ_k must reach
-        k = len(self.rates)
-        j = np.arange(1, k + 1)
-        half = slice(k // 2, k)
-        slope = float(np.sum(self.rates[half] * j[half]) / np.sum(j[half] ** 2))
-        if slope <= 0:
-            raise SolverError("cannot extrapolate from an all-zero spectrum")
-        return int(np.ceil(need / slope))
+    # ------------------------------------------------------------------ truncation (o3dheat.spectral._truncation)
+    truncation_bound = _truncation.truncation_bound
+    suggest_k = _truncation.suggest_k
