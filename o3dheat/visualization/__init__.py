@@ -1,6 +1,9 @@
-"""Visualization, the last stage: fields drawn on surfaces (:mod:`~o3dheat.visualization.plot`),
-charts (:mod:`~o3dheat.visualization.charts`) and the figure recipes
-(:mod:`~o3dheat.visualization.figures`: :func:`paper_figures`, :func:`study_figures`)."""
+"""Visualization, the last stage: drawings (``plot``), charts (``charts``), recipes (``figures``).
+
+:mod:`~o3dheat.visualization.plot` draws fields on surfaces, :mod:`~o3dheat.visualization.charts`
+plain matplotlib charts, and :mod:`~o3dheat.visualization.figures` holds the figure recipes
+(:func:`paper_figures`, :func:`study_figures`).
+"""
 
 from .figures import paper_figures, study_figures
 

@@ -1,6 +1,8 @@
-"""Composing a figure of panels: the mesh as the drawings see it (:func:`welded`, :func:`surface`,
-:func:`repaired`, :func:`oriented`), the colour range, colorbars, legends, notes and sizes, and
-the checks of the drawings' arguments (:func:`check_style`, :func:`check_tracks`).
+"""A figure of panels: the drawn mesh (:func:`welded`, :func:`oriented`), colour range, colorbars, legends.
+
+The mesh as the drawings see it (:func:`welded`, :func:`surface`, :func:`repaired`,
+:func:`oriented`), the colour range (:func:`color_range`), colorbars, legends, notes and sizes,
+and the checks of the drawings' arguments (:func:`check_style`, :func:`check_tracks`).
 """
 
 from __future__ import annotations

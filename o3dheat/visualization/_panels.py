@@ -1,6 +1,7 @@
-"""One panel of a drawing: what it shows, computed once (colours, level sets, critical points,
-the parts where the field is flat), and its picture by either renderer: :class:`Panel`,
-:func:`vertex_parts`, :func:`flat_parts`, :func:`flattened`, :func:`without_flat`.
+"""One panel of a drawing, computed once and pictured by either renderer: :class:`Panel`, :func:`vertex_parts`.
+
+A panel holds what it shows (colours, level sets, critical points) and the parts of the mesh where
+the field is flat (:func:`flat_parts`, :func:`flattened`, :func:`without_flat`).
 
 Notes
 -----

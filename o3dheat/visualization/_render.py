@@ -1,5 +1,7 @@
-"""Open3D's offscreen renderer, one per process, and the geometry of a view: :func:`renderer`
-(the renderer to draw with, or None for matplotlib), :func:`renderer_available`, :class:`View`.
+"""Open3D's offscreen renderer (one per process) and a view's geometry: :func:`renderer`, :class:`View`.
+
+:func:`renderer` gives the renderer to draw with (or None for matplotlib), :func:`renderer_available`
+says whether it starts here; :class:`View` frames a mesh in an orthographic view.
 
 Notes
 -----

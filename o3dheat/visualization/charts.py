@@ -1,6 +1,7 @@
-"""Charts (plain matplotlib): :func:`scale_space` (variation and critical points across scales),
-:func:`persistence_diagram`, :func:`study` (a robustness study's discrepancies) and
-:func:`lifetime_chart` (how long each track of critical points lives).
+"""Charts (plain matplotlib): :func:`scale_space`, :func:`persistence_diagram`, :func:`study`, :func:`lifetime_chart`.
+
+:func:`scale_space` draws the variation and critical points across scales, :func:`study` a
+robustness study's discrepancies, :func:`lifetime_chart` how long each track of critical points lives.
 
 Nothing is shown on screen: each returns a ``matplotlib.figure.Figure`` (made without pyplot);
 save it with ``fig.savefig("name.png")``. They are reachable from :mod:`o3dheat.visualization.plot`

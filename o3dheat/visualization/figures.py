@@ -1,6 +1,7 @@
-"""Figure recipes, each writing PNGs and an ``index.md`` into a folder: :func:`paper_figures` (the
-kinds of the paper's Figs. 1–7 for a mesh), :func:`track_figures` (critical points followed across
-scales), :func:`study_figures` (a robustness study's charts).
+"""Figure recipes writing PNGs and an ``index.md``: :func:`paper_figures`, :func:`track_figures`, :func:`study_figures`.
+
+:func:`paper_figures` draws the kinds of the paper's Figs. 1–7 for a mesh, :func:`track_figures`
+the critical points followed across scales, :func:`study_figures` a robustness study's charts.
 
 They are built from the library's pieces (:mod:`o3dheat.geometry.sampling`,
 :mod:`o3dheat.spectral.kernel`, :mod:`o3dheat.topology`, ...) and drawn by

@@ -1,8 +1,9 @@
-"""Fields drawn on surfaces as real 3D renders: :func:`field`, :func:`fields` (panels across
-scales), :func:`render` (the picture alone), :func:`tracks` (critical points across scales) and
-:func:`drawn_critical_points`; the charts of :mod:`o3dheat.visualization.charts`
-(:func:`scale_space`, :func:`persistence_diagram`, :func:`study`, :func:`lifetime_chart`) are
-reachable here too.
+"""Fields drawn on surfaces as 3D renders: :func:`field`, :func:`fields`, :func:`render`, :func:`tracks`.
+
+:func:`fields` draws panels across scales, :func:`render` the picture alone, :func:`tracks` the
+critical points across scales; :func:`drawn_critical_points` are those the drawings show. The
+charts of :mod:`o3dheat.visualization.charts` (:func:`scale_space`, :func:`persistence_diagram`,
+:func:`study`, :func:`lifetime_chart`) are reachable here too.
 
 Notes
 -----
