@@ -308,36 +308,12 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
     >>> bool(np.allclose(U[:, 0, 1], exact, atol=1e-12)), info.steps.tolist()
     (True, [3])
     """
-    F = np.asarray(F, dtype=np.float64)
-    if F.ndim != 2:
-        raise MeshError(f"propagate takes fields of shape (n, c), got {F.shape}")
+    F, taus = _check_arguments(F, taus, gamma, tol, out)
     n, c = F.shape
-    taus = np.asarray(taus, dtype=np.float64)
-    if taus.ndim != 1 or taus.size == 0 or not np.all(np.isfinite(taus)) or np.any(taus <= 0):
-        raise MeshError("propagate needs a non-empty 1-D array of finite times > 0")
-    if not (np.isfinite(gamma) and gamma > 0):
-        raise MeshError(f"the shift must be a positive number, got {gamma}")
-    if not (0 < tol < 1):
-        raise MeshError(f"tol must lie in (0, 1), got {tol}")
-    T = len(taus)
-    if rates is not None and null_rate != 0.0:  # exp(-τ φ) = exp(-τ φ(0)) exp(-τ (φ - φ(0))): φ(0) exactly
-        phi = rates
-
-        def rates(lam):
-            return phi(lam) - null_rate
-    if out is not None and (out.shape != (n, c, T) or out.dtype != np.float64):
-        raise MeshError(f"out must be a float64 array of shape {(n, c, T)}, got {out.shape} {out.dtype}")
-    W = sp.identity(n, format="csr") if W is None else sp.csr_matrix(W)
-    if not W.has_sorted_indices:
-        W = W.sorted_indices()  # a copy: the caller's matrix is never changed
-    d = np.asarray(W.sum(axis=1)).ravel()
-    null = _Null((np.full(n, -1, np.int64), d) if null is None else null, n)
+    rates = _less_null_rate(rates, null_rate)
+    W, null = _operator(W, null, n)
     solve = _solver(solve)
-    F1 = np.ascontiguousarray(F, dtype=np.float64).copy()
-    WF1 = np.empty_like(F1)
-    sums = null.times(W, F1, WF1)
-    scale = np.sqrt(np.maximum(np.einsum("ij,ij->j", F1, WF1), 0.0))
-    b0 = np.sqrt(np.maximum(null.project_out(F1, WF1, sums), 0.0))
+    F1, WF1, scale, b0 = _split_null(F, W, null)
     with np.errstate(over="ignore"):
         decay = np.exp(-taus * float(null_rate))
     if not np.all(np.isfinite(decay)):
@@ -345,47 +321,16 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
     f0 = F - F1  # the null-space part, exact: exp(-τ φ(0)) f0 at every time
     # a column whose non-constant part is at rounding level of the field is constant per part
     live = b0 > 1e-14 * np.maximum(scale, 1e-300)
-    steps = np.zeros(c, dtype=np.int64)
-    estimate = np.zeros((c, T))
-    converged = np.ones(c, dtype=bool)
+    track = _Columns(np.flatnonzero(live), c, b0, gamma, taus, rates, decay, tol, min_steps, max_steps)
     if not live.any():
-        return _result(f0, decay, [], {}, out), Propagation(steps, estimate, converged)
-    cols = np.flatnonzero(live)
-    if live.all():  # in place: no copies of (n, c) arrays (fresh memory is slow to touch)
-        F1 /= b0
-        WF1 /= b0
-        state = _State(cols, F1, WF1)
-    else:
-        state = _State(cols, F1[:, cols] / b0[cols], WF1[:, cols] / b0[cols])
+        return _result(f0, decay, [], {}, out), Propagation(track.steps, track.estimate, track.converged)
+    state = _start_state(live, F1, WF1, b0)
     del F1, WF1
-    alphas = {j: [] for j in cols}
-    betas = {j: [] for j in cols}
-    history = {j: [] for j in cols}  # the last coefficient arrays, newest last
-    under = {j: 0 for j in cols}  # consecutive steps with the estimate under tol
-    blocks = []  # stored vectors: [cols, first step, count, (a, _CHUNK, n) array]
-    budget = np.inf if basis_bytes is None else float(basis_bytes)
-    used = 0.0
-    saved = None  # (step, state copy) where storing stopped: the replay starts there
+    basis = _Basis(n, np.inf if basis_bytes is None else float(basis_bytes))
+    store = basis.store
     schedule = []  # per step: the running columns (for the replay)
     solves = 0
-    done_coef = {}
-
-    def store(state, step):
-        nonlocal used, saved
-        if saved is not None:
-            return
-        last = blocks[-1] if blocks else None
-        if last is None or last[2] == _CHUNK or not np.array_equal(last[0], state.cols):
-            need = 8.0 * n * _CHUNK * len(state.cols)
-            if used + need > budget:
-                saved = (step, state.copy())
-                return
-            last = [state.cols.copy(), step, 0, np.empty((len(state.cols), _CHUNK, n))]
-            blocks.append(last)
-            used += need
-        loops.rows(loops.transpose_into, n, state.V, last[3][:, last[2], :])
-        last[2] += 1
-
+    done_coef = track.done_coef
     step = 0
     store(state, step)
     while len(state.cols):
@@ -393,8 +338,68 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
         al, be = _step(state, solve, W, null)
         solves += len(state.cols)
         step += 1
-        go = np.ones(len(state.cols), dtype=bool)
-        for k, j in enumerate(state.cols):
+        go = track.update(state.cols, al, be)
+        be = be[go]
+        state.keep(go)
+        if len(state.cols):
+            _advance(state, be)
+            store(state, step)
+    del state  # its buffers, before the result's memory is taken
+    if release is not None:
+        release()
+    U = _result(f0, decay, basis.blocks, done_coef, out)
+    basis.blocks.clear()
+    replayed = 0
+    if basis.saved is not None:  # the vectors not stored: regenerated from the last stored state
+        more, replayed = _replay(basis.saved, schedule, done_coef, U, solve, W, null)
+        solves += more
+    return U, Propagation(track.steps, track.estimate, track.converged, solves, replayed)
+
+
+def _less_null_rate(rates, null_rate):
+    """The rates less φ(0): ``exp(-τ φ) = exp(-τ φ(0)) exp(-τ (φ - φ(0)))``, φ(0) applied exactly."""
+    if rates is None or null_rate == 0.0:
+        return rates
+    phi = rates
+
+    def less(lam):
+        return phi(lam) - null_rate
+
+    return less
+
+
+def _start_state(live, F1, WF1, b0):
+    """The first Lanczos state: the live columns of F1 and W F1, normalised."""
+    cols = np.flatnonzero(live)
+    if live.all():  # in place: no copies of (n, c) arrays (fresh memory is slow to touch)
+        F1 /= b0
+        WF1 /= b0
+        return _State(cols, F1, WF1)
+    return _State(cols, F1[:, cols] / b0[cols], WF1[:, cols] / b0[cols])
+
+
+class _Columns:
+    """Each column's tridiagonal coefficients, its last coefficient arrays, its estimate and when
+    it stops (steps, converged, the final coefficients ``done_coef``)."""
+
+    def __init__(self, cols, c, b0, gamma, taus, rates, decay, tol, min_steps, max_steps):
+        self.alphas = {j: [] for j in cols}
+        self.betas = {j: [] for j in cols}
+        self.history = {j: [] for j in cols}  # the last coefficient arrays, newest last
+        self.under = {j: 0 for j in cols}  # consecutive steps with the estimate under tol
+        self.steps = np.zeros(c, dtype=np.int64)
+        self.estimate = np.zeros((c, len(taus)))
+        self.converged = np.ones(c, dtype=bool)
+        self.done_coef = {}
+        self.settings = (b0, gamma, taus, rates, decay, tol, min_steps, max_steps)
+
+    def update(self, cols, al, be):
+        """One step's coefficients of the running columns ``cols``: which of them go on."""
+        b0, gamma, taus, rates, decay, tol, min_steps, max_steps = self.settings
+        alphas, betas, history, under = self.alphas, self.betas, self.history, self.under
+        estimate, converged, done_coef, steps = self.estimate, self.converged, self.done_coef, self.steps
+        go = np.ones(len(cols), dtype=bool)
+        for k, j in enumerate(cols):
             alphas[j].append(al[k])
             betas[j].append(be[k])
             Y = _coefficients(alphas[j], betas[j], b0[j], gamma, taus, rates)
@@ -412,36 +417,98 @@ def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, 
                 converged[j] = exhausted or under[j] >= 2
                 done_coef[j] = Y * decay  # exp(-τ φ(0)), 1 but for transfer functions
                 steps[j] = m
-        be = be[go]
-        state.keep(go)
-        if len(state.cols):
-            _advance(state, be)
-            store(state, step)
-    del state  # its buffers, before the result's memory is taken
-    if release is not None:
-        release()
-    U = _result(f0, decay, blocks, done_coef, out)
-    blocks.clear()
-    replayed = 0
-    if saved is not None:  # the vectors not stored: regenerated from the last stored state
-        start, state = saved
-        for i in range(start, len(schedule) + 1):
-            for k, j in enumerate(state.cols):  # vector i of column j
-                if i < len(done_coef[j]):
-                    loops.rows(loops.add_outer, n, U[:, j, :], np.ascontiguousarray(state.V[:, k]),
-                               np.ascontiguousarray(done_coef[j][i]))
-            if i == len(schedule):
-                break
-            state.keep(np.isin(state.cols, schedule[i]))
-            if not len(state.cols):
-                break
-            al, be = _step(state, solve, W, null)
-            solves += len(state.cols)
-            replayed += 1
-            alive = np.array([i + 1 < len(done_coef[j]) for j in state.cols])
-            if not alive.any():
-                break
-            be = be[alive]
-            state.keep(alive)
-            _advance(state, be)
-    return U, Propagation(steps, estimate, converged, solves, replayed)
+        return go
+
+
+def _check_arguments(F, taus, gamma, tol, out):
+    """``(F, taus)`` as float64 arrays, with the shift, the tolerance and ``out`` checked."""
+    F = np.asarray(F, dtype=np.float64)
+    if F.ndim != 2:
+        raise MeshError(f"propagate takes fields of shape (n, c), got {F.shape}")
+    n, c = F.shape
+    taus = np.asarray(taus, dtype=np.float64)
+    if taus.ndim != 1 or taus.size == 0 or not np.all(np.isfinite(taus)) or np.any(taus <= 0):
+        raise MeshError("propagate needs a non-empty 1-D array of finite times > 0")
+    if not (np.isfinite(gamma) and gamma > 0):
+        raise MeshError(f"the shift must be a positive number, got {gamma}")
+    if not (0 < tol < 1):
+        raise MeshError(f"tol must lie in (0, 1), got {tol}")
+    T = len(taus)
+    if out is not None and (out.shape != (n, c, T) or out.dtype != np.float64):
+        raise MeshError(f"out must be a float64 array of shape {(n, c, T)}, got {out.shape} {out.dtype}")
+    return F, taus
+
+
+def _operator(W, null, n):
+    """``(W, null)``: the mass as sorted CSR (the identity for None) and the null space of L."""
+    W = sp.identity(n, format="csr") if W is None else sp.csr_matrix(W)
+    if not W.has_sorted_indices:
+        W = W.sorted_indices()  # a copy: the caller's matrix is never changed
+    d = np.asarray(W.sum(axis=1)).ravel()
+    return W, _Null((np.full(n, -1, np.int64), d) if null is None else null, n)
+
+
+def _split_null(F, W, null):
+    """``(F1, W F1, scale, b0)``: the fields without their null-space part, W times them, the
+    fields' W-norms and those of ``F1``."""
+    F1 = np.ascontiguousarray(F, dtype=np.float64).copy()
+    WF1 = np.empty_like(F1)
+    sums = null.times(W, F1, WF1)
+    scale = np.sqrt(np.maximum(np.einsum("ij,ij->j", F1, WF1), 0.0))
+    b0 = np.sqrt(np.maximum(null.project_out(F1, WF1, sums), 0.0))
+    return F1, WF1, scale, b0
+
+
+class _Basis:
+    """The Lanczos vectors stored for the result, in blocks ``[cols, first step, count, (a, _CHUNK,
+    n) array]``, within ``budget`` bytes; past it, ``saved`` is the ``(step, state copy)`` where
+    storing stopped (the replay starts there)."""
+
+    def __init__(self, n, budget):
+        self.n, self.budget, self.used = n, budget, 0.0
+        self.blocks = []
+        self.saved = None
+
+    def store(self, state, step):
+        if self.saved is not None:
+            return
+        blocks, n = self.blocks, self.n
+        last = blocks[-1] if blocks else None
+        if last is None or last[2] == _CHUNK or not np.array_equal(last[0], state.cols):
+            need = 8.0 * n * _CHUNK * len(state.cols)
+            if self.used + need > self.budget:
+                self.saved = (step, state.copy())
+                return
+            last = [state.cols.copy(), step, 0, np.empty((len(state.cols), _CHUNK, n))]
+            blocks.append(last)
+            self.used += need
+        loops.rows(loops.transpose_into, n, state.V, last[3][:, last[2], :])
+        last[2] += 1
+
+
+def _replay(saved, schedule, done_coef, U, solve, W, null):
+    """Add to U the vectors that were not stored, regenerated from ``saved`` (the same operations,
+    so the same vectors); returns ``(solves, steps)`` made for that."""
+    start, state = saved
+    n = U.shape[0]
+    solves = replayed = 0
+    for i in range(start, len(schedule) + 1):
+        for k, j in enumerate(state.cols):  # vector i of column j
+            if i < len(done_coef[j]):
+                loops.rows(loops.add_outer, n, U[:, j, :], np.ascontiguousarray(state.V[:, k]),
+                           np.ascontiguousarray(done_coef[j][i]))
+        if i == len(schedule):
+            break
+        state.keep(np.isin(state.cols, schedule[i]))
+        if not len(state.cols):
+            break
+        al, be = _step(state, solve, W, null)
+        solves += len(state.cols)
+        replayed += 1
+        alive = np.array([i + 1 < len(done_coef[j]) for j in state.cols])
+        if not alive.any():
+            break
+        be = be[alive]
+        state.keep(alive)
+        _advance(state, be)
+    return solves, replayed

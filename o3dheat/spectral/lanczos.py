@@ -236,29 +236,17 @@ def block_lanczos(L, B, solve, k, sigma, block=8, tol=1e-8, max_basis=None, max_
 
 def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, seed, refine, start=None):
     n = L.shape[0]
-    b = int(max(1, min(block, n // 4 if n >= 8 else 1)))
-    m_max = int(min(n - b, max_basis or max(2 * k, k + 4 * b)))
-    m_max = max(m_max, min(n - b, k + max(2 * b, 8, k // 4)))
-    if m_max < k:
-        raise ConvergenceError(f"the problem is too small for Lanczos (n={n}, k={k}): use the dense solver")
+    b, m_max = _basis_size(n, k, block, max_basis)
     rng = np.random.default_rng(seed)
-    VT = np.empty((m_max + b, n))  # the basis, transposed: its first k rows can be kept in place
+    VT, T, rows, W, BW = _setup(B, n, b, m_max, start, rng)
     V = VT.T
-    T = np.zeros((m_max + b, m_max + b))
-    rows = _Rows(sp.csr_matrix(B))
-    if start is not None:
-        start = np.array(start, dtype=np.float64, order="C", ndmin=2)
-        if start.shape != (n, b) or not np.all(np.isfinite(start)):
-            raise MeshError(f"the start block must be a finite ({n}, {b}) array, got shape {start.shape}")
-    W, _, BW = _b_orthonormalize_block(rng.standard_normal((n, b)) if start is None else start, rows, rng)
     BV = [None, BW]  # B times the last two blocks (older, newer): saves sparse products
     # the (n, b) arrays of every step live in buffers made once: at a million vertices a fresh
     # 64 MB array is a fresh mmap whose pages fault in one by one (seconds of system time). B W
     # rotates through three (the newest and the two kept in BV), B Y and W through one each.
     by_buf, w_buf = np.empty((n, b)), np.empty((n, b))
-    bw_ring, turn = [np.empty((n, b)) for _ in range(3)], 0
-    m = 0
-    after_restart = False
+    bw_ring = [np.empty((n, b)) for _ in range(3)]
+    m, turn, after_restart = 0, 0, False
     solves = restarts = biggest = steps = full = 0
     c, locked_nu = 0, np.zeros(0)  # locked (converged) Ritz vectors: V[:, :c], values locked_nu
     while True:
@@ -286,12 +274,7 @@ def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, s
         rel = np.max(np.abs(C[:lo]) / ynorm, axis=1, initial=0.0)
         if after_restart or np.max(rel, initial=0.0) > _SEMI:
             full += 1
-            # partial re-orthogonalization (Simon 1984): only against the basis vectors whose
-            # coefficient exceeds eps^(3/4), in contiguous runs, plus the local blocks
-            for a, z in _runs(np.flatnonzero(rel > _ETA)):
-                rows.sub(Y, V[:, a:z], C[a:z])
-            rows.sub(Y, Vl, C[lo:m])
-            BY = rows.spmul(0, Y, out=by_buf)
+            BY = _reorthogonalize(Y, V, Vl, C, rel, lo, m, rows, by_buf)
         else:
             rows.sub(Y, Vl, C[lo:m])
             _sub_bv(BY, BV, C[lo:m], rows)
@@ -304,38 +287,91 @@ def _block_lanczos(L, B, solve, k, sigma, block, tol, max_basis, max_restarts, s
         done_filling = m + b > m_max
         if m < k + b and not done_filling:
             continue
-        # Ritz pairs of the active part (the first c basis vectors are locked Ritz vectors)
-        Ts = np.triu(T[c:m, c:m]) + np.triu(T[c:m, c:m], 1).T
-        nu, Z = np.linalg.eigh(Ts)
-        nu, Z = nu[::-1], Z[:, ::-1]  # largest ν first = smallest λ
-        rho = np.linalg.norm(R @ Z[m - b - c:m - c, :], axis=0)
-        conv = rho <= tol * np.abs(nu)
-        if m >= k and bool(np.all(conv[:k - c])):
+        nu, Z, rho = _ritz_pairs(T, R, c, m, b)
+        if m >= k and bool(np.all(rho[:k - c] <= tol * np.abs(nu[:k - c]))):
             break
         if done_filling:
             if restarts >= max_restarts:
                 raise ConvergenceError(f"block Lanczos did not converge after {restarts} restarts")
             restarts += 1
-            p = min(m - b, max(k + (m_max - k) // 2, k + b), m_max - b)
-            # lock the leading converged Ritz pairs: they leave T and the rotations (their
-            # coupling to later blocks is below tol |ν|, the final Rayleigh-Ritz sees them all)
-            # (only pairs 100x below the tolerance: they stay more accurate than the rest needs)
-            firm = rho <= 0.01 * tol * np.abs(nu)
-            lock = min(int(np.argmin(firm)) if not firm.all() else len(firm), k - 1 - c)
-            _rotate(V[:, c:], m - c, Z, p - c)
-            T[:] = 0
-            locked_nu = np.concatenate([locked_nu, nu[:lock]])
-            T[:p, :p] = np.diag(np.concatenate([locked_nu, nu[lock:p - c]]))
-            c += lock
-            m = p
+            c, m, locked_nu = _restart(V, T, Z, nu, rho, c, m, b, k, m_max, tol, locked_nu)
             after_restart = True
-    _rotate(V[:, c:], m - c, Z, k - c)  # the Ritz vectors, in the first k columns
-    nu = np.concatenate([locked_nu, nu[:k - c]])
     del Vl, BV, V, W, BW, Y, BY, by_buf, w_buf, bw_ring  # before the refinement: peak memory
-    VT.resize((k, n), refcheck=False)  # the Ritz vectors stay, the rest of the basis is freed
-    V = VT.T
     info = {"solves": solves, "restarts": restarts, "basis": biggest, "block": b,
             "full_reorth": full, "steps": steps, "locked": c}
+    return _ritz_vectors(L, B, VT, Z, np.concatenate([locked_nu, nu[:k - c]]), c, m, k, sigma, refine, info)
+
+
+def _basis_size(n, k, block, max_basis):
+    """``(b, m_max)``: the block size and the largest basis (before a restart) for k eigenpairs of n."""
+    b = int(max(1, min(block, n // 4 if n >= 8 else 1)))
+    m_max = int(min(n - b, max_basis or max(2 * k, k + 4 * b)))
+    m_max = max(m_max, min(n - b, k + max(2 * b, 8, k // 4)))
+    if m_max < k:
+        raise ConvergenceError(f"the problem is too small for Lanczos (n={n}, k={k}): use the dense solver")
+    return b, m_max
+
+
+def _setup(B, n, b, m_max, start, rng):
+    """``(VT, T, rows, W, B W)``: the basis (transposed: its first k rows can be kept in place), the
+    projected matrix, B's rows, and the B-orthonormal start block."""
+    VT = np.empty((m_max + b, n))
+    T = np.zeros((m_max + b, m_max + b))
+    rows = _Rows(sp.csr_matrix(B))
+    W, _, BW = _b_orthonormalize_block(_start_block(start, n, b, rng), rows, rng)
+    return VT, T, rows, W, BW
+
+
+def _start_block(start, n, b, rng):
+    """The start block: ``start``, checked, or ``b`` random vectors."""
+    if start is not None:
+        start = np.array(start, dtype=np.float64, order="C", ndmin=2)
+        if start.shape != (n, b) or not np.all(np.isfinite(start)):
+            raise MeshError(f"the start block must be a finite ({n}, {b}) array, got shape {start.shape}")
+    return rng.standard_normal((n, b)) if start is None else start
+
+
+def _reorthogonalize(Y, V, Vl, C, rel, lo, m, rows, by_buf):
+    """Partial re-orthogonalization (Simon 1984) of Y: only against the basis vectors whose
+    coefficient exceeds eps^(3/4), in contiguous runs, plus the local blocks; returns B Y."""
+    for a, z in _runs(np.flatnonzero(rel > _ETA)):
+        rows.sub(Y, V[:, a:z], C[a:z])
+    rows.sub(Y, Vl, C[lo:m])
+    return rows.spmul(0, Y, out=by_buf)
+
+
+def _ritz_pairs(T, R, c, m, b):
+    """``(ν, Z, ρ)``: the Ritz pairs of the active part of T (the first c basis vectors are locked
+    Ritz vectors), largest ν first (smallest λ), and their residual norms."""
+    Ts = np.triu(T[c:m, c:m]) + np.triu(T[c:m, c:m], 1).T
+    nu, Z = np.linalg.eigh(Ts)
+    nu, Z = nu[::-1], Z[:, ::-1]  # largest ν first = smallest λ
+    rho = np.linalg.norm(R @ Z[m - b - c:m - c, :], axis=0)
+    return nu, Z, rho
+
+
+def _restart(V, T, Z, nu, rho, c, m, b, k, m_max, tol, locked_nu):
+    """A thick restart in place: the basis rotated to its leading Ritz vectors, T made diagonal;
+    returns ``(c, m, locked_nu)``, the locked count, the kept basis size and the locked values."""
+    p = min(m - b, max(k + (m_max - k) // 2, k + b), m_max - b)
+    # lock the leading converged Ritz pairs: they leave T and the rotations (their
+    # coupling to later blocks is below tol |ν|, the final Rayleigh-Ritz sees them all)
+    # (only pairs 100x below the tolerance: they stay more accurate than the rest needs)
+    firm = rho <= 0.01 * tol * np.abs(nu)
+    lock = min(int(np.argmin(firm)) if not firm.all() else len(firm), k - 1 - c)
+    _rotate(V[:, c:], m - c, Z, p - c)
+    T[:] = 0
+    locked_nu = np.concatenate([locked_nu, nu[:lock]])
+    T[:p, :p] = np.diag(np.concatenate([locked_nu, nu[lock:p - c]]))
+    return c + lock, p, locked_nu
+
+
+def _ritz_vectors(L, B, VT, Z, nu, c, m, k, sigma, refine, info):
+    """The result: the Ritz vectors rotated into the first k rows of the basis (the rest freed),
+    refined by Rayleigh-Ritz when asked."""
+    _rotate(VT.T[:, c:], m - c, Z, k - c)  # the Ritz vectors, in the first k columns
+    VT.resize((k, VT.shape[1]), refcheck=False)  # the Ritz vectors stay, the rest of the basis is freed
+    V = VT.T
     if not refine:
         return sigma + 1.0 / nu[:k], V[:, :k], info
     lam, X = rayleigh_ritz(L, B, V, overwrite=True)
