@@ -474,8 +474,8 @@ def _to_toml(data):
 
 # ------------------------------------------------------------------------ the shared spectrum
 def set_disk_cache(folder: PathLike | bool | None) -> None:
-    """Also keep the filters' spectra on disk: a folder, True (``o3dheat.spectral.spectrum.default_cache_dir()``)
-    or None (memory only, the default): :func:`o3dheat.spectral.spectrum.set_cache`.
+    """Also keep the filters' spectra on disk: a folder, True (``o3dheat.spectral.cache.default_cache_dir()``)
+    or None (memory only, the default): :func:`o3dheat.spectral.cache.set_cache`.
 
     Examples
     --------
