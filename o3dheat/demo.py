@@ -15,7 +15,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import open3d as o3d
 
 from o3dheat._jit import any_compiled
 from o3dheat.geometry import as_arrays, decimate
@@ -130,6 +129,8 @@ def _smooth(V, F, spec, f, timings):
 
 def _write(out, V, F, r):
     """The PLY with every field attached and colours of Φ_t f at t5; its path."""
+    import open3d as o3d
+
     result = o3d.t.geometry.TriangleMesh()
     result.vertex.positions = o3d.core.Tensor(V)
     result.triangle.indices = o3d.core.Tensor(F)

@@ -18,10 +18,12 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, Union, runtime_checkable
 
-import open3d as o3d
 from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:  # Open3D's import takes seconds: the aliases name its classes without importing it
+    import open3d
 
 __all__ = ["MeshLike", "FieldLike", "TimesLike", "PathLike", "HasMesh"]
 
@@ -45,7 +47,7 @@ class HasMesh(Protocol):
 
 #: a triangle mesh: Open3D's tensor or legacy ``TriangleMesh``, a ``(V, F)`` pair of arrays
 #: (``V`` ``(n, 3)`` real, ``F`` ``(m, 3)`` 0-based integer), or a :class:`HasMesh` wrapper
-MeshLike = o3d.t.geometry.TriangleMesh | o3d.geometry.TriangleMesh | tuple[ArrayLike, ArrayLike] | HasMesh
+MeshLike = Union["open3d.t.geometry.TriangleMesh", "open3d.geometry.TriangleMesh", tuple[ArrayLike, ArrayLike], HasMesh]  # noqa: UP007 - forward references
 
 #: a field on the vertices: ``(n,)`` or ``(n, c)`` real values, one row per input vertex
 FieldLike = ArrayLike

@@ -12,7 +12,6 @@ import re
 import typing
 
 import numpy as np
-import open3d as o3d
 
 from o3dheat.errors import MeshError
 from o3dheat.typing import FieldLike
@@ -135,6 +134,8 @@ def attribute_columns(geometry: typing.Any) -> dict[str, int]:
     >>> attribute_columns(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 4))
     {'positions': 3}
     """
+    import open3d as o3d
+
     if isinstance(geometry, o3d.geometry.TriangleMesh):
         return {"positions": 3, **({"normals": 3} if geometry.has_vertex_normals() else {}),
                 **({"colors": 3} if geometry.has_vertex_colors() else {})}

@@ -22,7 +22,6 @@ import typing
 from typing import Annotated, Literal
 
 import numpy as np
-import open3d as o3d
 
 from o3dheat.errors import MeshError
 from o3dheat.geometry import as_arrays, interpolation
@@ -43,6 +42,9 @@ from .filters import (
     param,
     shared_spectrum,
 )
+
+if typing.TYPE_CHECKING:  # annotations only: Open3D is imported where it is used (it takes seconds)
+    import open3d as o3d
 
 __all__ = ["Site", "checked", "OPERATORS", "MAX_SCALES", "Variant", "Grid", "HksForm", "Normalization", "Operators",
            "Method", "eigenpairs", "scale_count", "time_list", "tolerance", "persistence", "fraction", "kernel_of",
@@ -184,6 +186,8 @@ class Site:
 
     def __init__(self, geometry: MeshLike | o3d.t.geometry.PointCloud | o3d.geometry.PointCloud,
                  operators: str = "reconstruct", step: typing.Any = None):
+        import open3d as o3d
+
         self.o3d = o3d
         if operators not in OPERATORS:
             raise MeshError(f"unknown operators {operators!r}: use one of {OPERATORS}")

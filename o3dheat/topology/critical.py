@@ -38,7 +38,6 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-import open3d as o3d
 
 from o3dheat._jit import any_compiled
 from o3dheat.typing import FieldLike, MeshLike
@@ -207,6 +206,8 @@ def warm_up() -> None:
     >>> import o3dheat.topology as T
     >>> T.warm_up()
     """
+    import open3d as o3d
+
     m = o3d.geometry.TriangleMesh.create_sphere(1.0, 6)
     V, F = np.asarray(m.vertices), np.asarray(m.triangles, dtype=np.int64)
     S = Surface.from_faces(len(V), F, V)

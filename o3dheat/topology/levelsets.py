@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-import open3d as o3d
 
 from o3dheat import checks
 from o3dheat.errors import MeshError
 from o3dheat.typing import FieldLike, MeshLike
 
 from .surface import Surface
+
+if TYPE_CHECKING:  # annotations only: Open3D is imported where it is used (it takes seconds)
+    import open3d as o3d
 
 __all__ = ["level_sets"]
 
@@ -49,6 +52,8 @@ def level_sets(mesh: MeshLike | Surface, f: FieldLike, values: Sequence[float] |
     >>> len(ls.lines) > 0
     True
     """
+    import open3d as o3d
+
     S = Surface.of(mesh)
     if S.V is None:
         raise MeshError("level_sets needs vertex coordinates: pass a mesh or (V, F)")
