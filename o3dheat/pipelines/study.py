@@ -449,7 +449,7 @@ def load_config(path: PathLike) -> dict:
 
 
 def _builtin(src):
-    """``builtin:NAME[@FACES]``: a sample mesh (:func:`o3dheat.demo.sample_mesh`), optionally
+    """``builtin:NAME[@FACES]``: a sample mesh (:func:`o3dheat.io.samples.sample_mesh`), optionally
     decimated to FACES faces."""
     name, _, size = src.partition(":")[2].partition("@")
     mesh = sample_mesh(name)
