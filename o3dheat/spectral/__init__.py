@@ -1,4 +1,10 @@
-"""Spectral operators: linear FEM, Cholesky factors, eigenpairs, heat kernels, exact heat flow."""
+"""Spectral operators: linear FEM, Cholesky factors, eigenpairs, heat kernels, exact heat flow.
+
+Entry points: :func:`eigensolve` (:class:`Spectrum`), :class:`HeatKernel` and :func:`heat_kernel`,
+:func:`heat_flow` and :class:`HeatFlow`, :func:`diffuse`, :func:`stiffness_matrix` and
+:func:`mass_matrix`; the modules, in the order of the data flow: fem -> linalg (memory) -> lanczos
+-> spectrum (cache) -> kernel -> diffusion, krylov -> heatflow.
+"""
 
 from .cache import clear_cache, set_cache
 from .diffusion import diffuse

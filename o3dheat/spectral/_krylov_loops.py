@@ -1,6 +1,8 @@
-"""The loops of one Lanczos step of :mod:`o3dheat.spectral.krylov`, compiled (:func:`o3dheat._jit.compiled`),
-each over a range of rows ``[a, z)`` of C-ordered ``(n, c)`` arrays, updating in place (no fresh
-memory per step: on virtual machines a first touch of fresh pages costs about 1 s per GB).
+"""The compiled loops of one Lanczos step of :mod:`o3dheat.spectral.krylov`: :func:`rows` runs them.
+
+Each is compiled by :func:`o3dheat._jit.compiled` and runs over a range of rows ``[a, z)`` of
+C-ordered ``(n, c)`` arrays, updating in place (no fresh memory per step: on virtual machines a
+first touch of fresh pages costs about 1 s per GB).
 
 Sums over the rows come back per range: :func:`rows` adds them in the order of
 :func:`o3dheat.parallel.row_parts`, which depends on ``n`` only, so results do not depend on the

@@ -1,4 +1,6 @@
-"""Time stepping of the heat equation ``B ∂_t F = −L F / 2`` (paper §2.3): the explicit scheme of
+"""Time stepping of the heat equation ``B ∂_t F = −L F / 2`` (paper §2.3): :func:`diffuse`.
+
+Entry points: :func:`diffuse`, :func:`explicit_step_limit`, :data:`SCHEMES`: the explicit scheme of
 eq. (8), ``B F(t+dt) = (B − dt L / 2) F(t)``, and backward (implicit) Euler,
 ``(B + dt L / 2) F(t+dt) = B F(t)``. Either way one matrix is factorized once for all steps, and
 many fields are stepped at once.
@@ -12,6 +14,7 @@ import scipy.sparse as sp
 from o3dheat import checks
 from o3dheat.errors import MeshError, SolverError
 from o3dheat.geometry import prepare
+from o3dheat.typing import FieldLike, MeshLike
 
 from . import fem
 from .linalg import factorize
@@ -45,7 +48,7 @@ def _largest_rate(L, B, backend="auto"):
     return float(lam[-1]) / s
 
 
-def explicit_step_limit(rate):
+def explicit_step_limit(rate: float) -> float:
     """The largest stable step of the explicit scheme (8) for the largest rate ``λ_max`` of
     ``B⁻¹L``: ``4 / λ_max``.
 
@@ -72,8 +75,8 @@ def _mass_solver(B, backend):
     return factorize(B, backend=backend).solve
 
 
-def diffuse(mesh, f, dt, steps, scheme="explicit", mass="consistent", backend="auto",
-            return_history=False):
+def diffuse(mesh: MeshLike, f: FieldLike, dt: float, steps: int, scheme: str = "explicit", mass: str = "consistent",
+            backend: str = "auto", return_history: bool = False):
     """Diffuse per-vertex fields by time stepping (paper eq. (8), or backward Euler).
 
     Parameters

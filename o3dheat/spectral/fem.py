@@ -1,6 +1,12 @@
-"""Linear-FEM operators on triangle meshes: cotangent stiffness, consistent and lumped mass,
-Voronoi (mixed) areas.
+"""Linear-FEM operators on triangle meshes: :func:`stiffness_matrix`, :func:`mass_matrix`, :func:`operators`.
 
+Entry points: :func:`stiffness_matrix` (cotangent), :func:`mass_matrix` (consistent, lumped,
+Voronoi, identity: :data:`MASS_KINDS`), :func:`voronoi_areas` (mixed), :func:`operators` (all of
+them at once), :func:`adjacency_pattern`, :func:`mean_curvature`, :func:`gaussian_curvature`,
+:func:`check_mass_kind`.
+
+Notes
+-----
 Conventions (the paper's eq. (3), sign flipped so that L is positive semi-definite):
 
 * ``L[i, j] = -(cot a_ij + cot b_ij) / 2`` for an edge ``ij`` (one cotangent on a boundary edge),
@@ -20,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from o3dheat.errors import MeshError
 from o3dheat.geometry import _loops as loops
@@ -39,7 +46,7 @@ MASS_KINDS = {
 }
 
 
-def check_mass_kind(kind):
+def check_mass_kind(kind: str) -> str:
     """``kind`` if it is a key of :data:`MASS_KINDS`, else a :class:`~o3dheat.MeshError` listing them.
 
     Examples
@@ -72,7 +79,7 @@ def _corner_geometry(V, F):
     return dbl, cot, sq
 
 
-def adjacency_pattern(F, n):
+def adjacency_pattern(F: ArrayLike, n: int) -> tuple[np.ndarray, np.ndarray]:
     """The sparsity pattern of the stiffness (and of the consistent mass): the vertex adjacency of
     the faces, diagonal included, as CSC ``(indptr, indices)`` (sorted; int32 below 2^31 entries).
     Known before any value, for example to analyse a factorization meanwhile
@@ -117,7 +124,7 @@ def _assembled(V, F, consistent, pattern=None):
     return L, B, vor, lumped
 
 
-def stiffness_matrix(V, F):
+def stiffness_matrix(V: ArrayLike, F: ArrayLike) -> sp.csc_matrix:
     """Cotangent stiffness matrix ``L`` (positive semi-definite, rows sum to 0).
 
     Parameters
@@ -144,7 +151,7 @@ def stiffness_matrix(V, F):
     return _assembled(V, F, consistent=False)[0]
 
 
-def voronoi_areas(V, F):
+def voronoi_areas(V: ArrayLike, F: ArrayLike) -> np.ndarray:
     """Mixed Voronoi areas per vertex (Meyer, Desbrun, Schröder, Barr 2003).
 
     Non-obtuse triangles give each corner its Voronoi region; an obtuse triangle gives half its
@@ -173,7 +180,7 @@ def voronoi_areas(V, F):
     return _assembled(V, F, consistent=False)[2]
 
 
-def operators(V, F, mass="consistent", pattern=None):
+def operators(V: ArrayLike, F: ArrayLike, mass: str = "consistent", pattern: tuple | None = None):
     """The stiffness matrix, a mass matrix and the Voronoi areas in one pass over the faces.
 
     Parameters
@@ -215,7 +222,7 @@ def _mass(kind, B, areas, lumped):
     return sp.diags(areas if kind == "voronoi" else lumped).tocsc()
 
 
-def mass_matrix(V, F, kind="consistent"):
+def mass_matrix(V: ArrayLike, F: ArrayLike, kind: str = "consistent") -> sp.csc_matrix:
     """Mass matrix ``B`` of the linear FEM.
 
     Parameters
@@ -249,7 +256,7 @@ def mass_matrix(V, F, kind="consistent"):
     return _mass(kind, B, areas, lumped)
 
 
-def mean_curvature(V, F):
+def mean_curvature(V: ArrayLike, F: ArrayLike) -> np.ndarray:
     """Mean curvature per vertex from the FEM operators: ``H = ½ ⟨A⁻¹ L V, n⟩``.
 
     ``L V`` is the cotangent Laplacian of the coordinates (``−Δx = 2 H n`` on a smooth surface),
@@ -284,7 +291,7 @@ def mean_curvature(V, F):
     return np.divide(H, a, out=np.zeros(len(V)), where=a > 0)
 
 
-def gaussian_curvature(V, F):
+def gaussian_curvature(V: ArrayLike, F: ArrayLike) -> np.ndarray:
     """Gaussian curvature per vertex by the angle defect: ``K = (2π − Σ θ) / A`` (``π − Σ θ`` on
     the boundary), with the mixed Voronoi areas ``A``.
 

@@ -1,7 +1,7 @@
-"""Shift-and-invert Lanczos for the heat semigroup: ``exp(−τ A) F``, ``A = W⁻¹L``, at many times
-``τ`` at once from one sparse factor of ``W + γL``; entry point :func:`propagate`.
+"""Shift-and-invert Lanczos for the heat semigroup ``exp(−τ W⁻¹L) F`` at many times at once: :func:`propagate`.
 
-This is the restricted-denominator rational Krylov method (Moret & Novati, BIT 44, 2004; van den
+Entry points: :func:`propagate` (from one sparse factor of ``W + γL``), :class:`Propagation` (what
+it reports), :data:`MIN_STEPS`, :data:`BREAKDOWN`. This is the restricted-denominator rational Krylov method (Moret & Novati, BIT 44, 2004; van den
 Eshof & Hochbruck, SIAM J. Sci. Comput. 27, 2006; Güttel's survey, GAMM-Mitt. 36, 2013).
 
 Notes
@@ -45,11 +45,13 @@ kept state, so the same vectors: about one more solve per step not kept) instead
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from o3dheat.errors import MeshError, SolverError
 
@@ -248,8 +250,10 @@ def _difference(Y, Yold):
     return np.linalg.norm(D, axis=0)
 
 
-def propagate(solve, W, F, taus, gamma, *, null=None, tol=1e-8, max_steps=1000, rates=None,
-              null_rate=0.0, basis_bytes=None, min_steps=MIN_STEPS, out=None, release=None):
+def propagate(solve: Callable, W: sp.spmatrix | None, F: ArrayLike, taus: ArrayLike, gamma: float, *,
+              null: tuple | None = None, tol: float = 1e-8, max_steps: int = 1000, rates: Callable | None = None,
+              null_rate: float = 0.0, basis_bytes: float | None = None, min_steps: int = MIN_STEPS,
+              out: np.ndarray | None = None, release: Callable | None = None):
     """``exp(−τ W⁻¹L) F`` at every τ, from a solver of ``W + γL`` (see the module notes).
 
     Parameters
