@@ -29,6 +29,7 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 
 from o3dheat.errors import MeshError
 from o3dheat.io import atomic_write
@@ -202,15 +203,14 @@ def spectrum_arrays(s):
 
 def read_spectrum(path):
     """The fields of a :class:`o3dheat.Spectrum` from a :meth:`~o3dheat.Spectrum.save` file,
-    unchecked (the caller checks them); a MeshError when the file is not one."""
-    import scipy.sparse as sp
-
+    unchecked (the caller checks them); a MeshError when the file is not one, an OSError (naming
+    the path) when it cannot be read (missing, a folder, no permission)."""
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as z:
             a = {name: z[name] for name in z.files}
-    except FileNotFoundError:
-        raise MeshError(f"no such file: {path}") from None
+    except OSError:
+        raise  # a file-system failure stays an OSError
     except Exception as e:
         raise MeshError(f"{path} is not a readable .npz file ({e})") from None
     if "format" not in a or str(a["format"]) != FORMAT:

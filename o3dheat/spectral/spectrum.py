@@ -210,7 +210,9 @@ class Spectrum:
         Raises
         ------
         MeshError
-            Not a readable spectrum file, or one that fails a check (named in the message).
+            Not a spectrum file, or one that fails a check (named in the message).
+        OSError
+            The file cannot be read (missing, a folder, no permission): the path is named.
 
         Examples
         --------
