@@ -3,18 +3,19 @@
 Entry points: :func:`eigensolve` (:class:`Spectrum`), :class:`HeatKernel` and :func:`heat_kernel`,
 :func:`heat_flow` and :class:`HeatFlow`, :func:`diffuse`, :func:`stiffness_matrix` and
 :func:`mass_matrix`; the modules, in the order of the data flow: fem -> linalg (memory) -> lanczos
--> spectrum (cache) -> kernel -> diffusion, krylov -> heatflow.
+-> spectrum (cache) -> kernel (variants) -> diffusion, krylov -> heatflow.
 """
 
 from .cache import clear_cache, set_cache
 from .diffusion import diffuse
 from .fem import mass_matrix, stiffness_matrix
 from .heatflow import HeatFlow, heat_flow
-from .kernel import VARIANTS, HeatKernel, heat_kernel
+from .kernel import HeatKernel, heat_kernel
 from .spectrum import Spectrum, eigensolve, shared_eigensolve
+from .variants import VARIANTS
 
 # isort: split
 # the modules, as attributes of the package
-from . import cache, diffusion, fem, heatflow, kernel, krylov, lanczos, linalg, memory, spectrum  # noqa: E402
+from . import cache, diffusion, fem, heatflow, kernel, krylov, lanczos, linalg, memory, spectrum, variants  # noqa: E402
 
-__all__ = ["mass_matrix", "stiffness_matrix", "Spectrum", "clear_cache", "eigensolve", "set_cache", "shared_eigensolve", "HeatKernel", "VARIANTS", "heat_kernel", "diffuse", "HeatFlow", "heat_flow", "fem", "linalg", "memory", "lanczos", "spectrum", "cache", "kernel", "diffusion", "krylov", "heatflow"]
+__all__ = ["mass_matrix", "stiffness_matrix", "Spectrum", "clear_cache", "eigensolve", "set_cache", "shared_eigensolve", "HeatKernel", "VARIANTS", "heat_kernel", "diffuse", "HeatFlow", "heat_flow", "fem", "linalg", "memory", "lanczos", "spectrum", "cache", "variants", "kernel", "diffusion", "krylov", "heatflow"]

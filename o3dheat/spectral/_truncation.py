@@ -13,8 +13,8 @@ from o3dheat import checks
 from o3dheat.errors import MeshError, SolverError
 from o3dheat.typing import FieldLike, TimesLike
 
-from ._variants import transfer_function
 from .spectrum import inverse_mass_bound
+from .variants import transfer_function
 
 
 def top_rate(kernel):

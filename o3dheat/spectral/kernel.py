@@ -4,7 +4,7 @@ Entry points: :func:`heat_kernel` (a mesh's kernel), :class:`HeatKernel` (on a
 :class:`~o3dheat.Spectrum`: the feature map Φ_t, heat kernel signatures, the paper's scales,
 approximation errors, the canonic basis, the inverse, truncation bounds). The variants and the
 other lists (:data:`VARIANTS`, :data:`GRIDS`, :data:`HKS_FORMS`, :data:`NORMALIZATIONS`) are
-defined once in :mod:`o3dheat.spectral._variants` and reached here.
+defined once in :mod:`o3dheat.spectral.variants` and reached here.
 
 Notes
 -----
@@ -12,7 +12,7 @@ Time follows the paper: ``K_t = X D_t Xᵀ W`` with ``D_t = diag(exp(-φ(λ_i) t
 ``φ(λ) = λ`` unless a transfer function is given (§2.3), and ``λ_i`` divided by the first non-zero
 eigenvalue when ``normalize="lambda2"`` (§2.2: the kernel is then scale invariant). Peers such as
 LaPy and Sun et al. write ``exp(-λ t)``: ``t_paper = 2 t_peer``. Each variant is the heat kernel of
-its own eigenproblem ``L x = λ W x`` (see :mod:`o3dheat.spectral._variants`).
+its own eigenproblem ``L x = λ W x`` (see :mod:`o3dheat.spectral.variants`).
 
 Everything works on the truncated spectrum (``k`` eigenpairs): ``Φ_t f = X_k D_t X_kᵀ W f`` costs
 ``O(k n)`` per scale and field.
@@ -30,21 +30,38 @@ from o3dheat.errors import MeshError, SolverError
 from o3dheat.typing import FieldLike, MeshLike, TimesLike
 
 from . import _truncation, spectrum
-from ._variants import (
-    GRIDS,
-    HKS_DEFAULT,
-    HKS_FORMS,
-    NORMALIZATIONS,
-    VARIANTS,
-    first_nonzero,
-    mass_of,
-    transfer_function,
-    variant_of_mass,
-)
 from .spectrum import Spectrum, all_zero
 
-__all__ = ["HeatKernel", "heat_kernel", "VARIANTS", "GRIDS", "HKS_FORMS", "HKS_DEFAULT", "NORMALIZATIONS",
-           "mass_of", "variant_of_mass", "first_nonzero", "transfer_function"]
+# the lists and the variants' masses, defined in .variants; kernel.VARIANTS and the others stay reachable here
+from .variants import (
+    GRIDS as GRIDS,
+)
+from .variants import (
+    HKS_DEFAULT as HKS_DEFAULT,
+)
+from .variants import (
+    HKS_FORMS as HKS_FORMS,
+)
+from .variants import (
+    NORMALIZATIONS as NORMALIZATIONS,
+)
+from .variants import (
+    VARIANTS as VARIANTS,
+)
+from .variants import (
+    first_nonzero as first_nonzero,
+)
+from .variants import (
+    mass_of as mass_of,
+)
+from .variants import (
+    transfer_function as transfer_function,
+)
+from .variants import (
+    variant_of_mass as variant_of_mass,
+)
+
+__all__ = ["HeatKernel", "heat_kernel"]
 
 
 def heat_kernel(mesh: MeshLike, k: int = 100, variant: str = "weighted", normalize: str | None = None,

@@ -2,8 +2,8 @@
 
 Entry points: :data:`VARIANTS`, :data:`GRIDS`, :data:`HKS_FORMS`, :data:`HKS_DEFAULT`,
 :data:`NORMALIZATIONS`, :func:`mass_of`, :func:`variant_of_mass`, :func:`first_nonzero`,
-:func:`transfer_function`; all of them are reached as :mod:`o3dheat.spectral.kernel`'s (a variant
-added to :data:`VARIANTS` here reaches the kernels, the filters, the command and the studies).
+:func:`transfer_function`; also reachable as :mod:`o3dheat.spectral.kernel`'s (a variant added to :data:`VARIANTS` here
+reaches the kernels, the filters, the command and the studies: this file is the only one to edit).
 
 Notes
 -----
@@ -32,6 +32,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from o3dheat.errors import MeshError
+
+__all__ = ["VARIANTS", "GRIDS", "HKS_FORMS", "HKS_DEFAULT", "NORMALIZATIONS", "mass_of", "variant_of_mass",
+           "first_nonzero", "transfer_function"]
 
 #: kernel variant -> (mass of its eigenproblem, a key of :data:`o3dheat.spectral.fem.MASS_KINDS`; what it is
 #: in one line). The one definition used by the filters, the command, the studies and the figures:
