@@ -12,7 +12,7 @@ import numpy as np
 from o3dheat.errors import MeshError
 from o3dheat.geometry import mesh as meshes
 from o3dheat.geometry import points
-from o3dheat.spectral import spectrum
+from o3dheat.spectral import cache, spectrum
 
 
 def reconstruction(site):
@@ -23,7 +23,7 @@ def reconstruction(site):
     h = hashlib.sha256(np.ascontiguousarray(site.P).tobytes())
     if "normals" in site.attrs:
         h.update(np.ascontiguousarray(site.attrs["normals"].numpy(), dtype=np.float64).tobytes())
-    return spectrum.memoized(("reconstruct", h.hexdigest()), lambda: points.reconstruct(site.out))
+    return cache.memoized(("reconstruct", h.hexdigest()), lambda: points.reconstruct(site.out))
 
 
 def robust_operators(P):
@@ -42,4 +42,4 @@ def robust_spectrum(P, k):
         return spectrum.eigensolve_operators(L, M, k=min(k, len(P) - 2))
 
     key = ("robust", hashlib.sha256(np.ascontiguousarray(P, dtype=np.float64).tobytes()).hexdigest(), k)
-    return spectrum.memoized(key, compute)
+    return cache.memoized(key, compute)

@@ -44,20 +44,6 @@ from ._solvers import solve_eigenproblem, weyl_gap
 from .cache import SPECTRA, disk_folder, entry_valid, load_entry, memoized, save_entry, spectrum_key
 from .memory import OutOfMemory
 
-# isort: split
-# the names of the cache and of the memory estimate, reachable here as before they had their modules
-from .cache import cache_max_bytes as cache_max_bytes
-from .cache import clear_cache as clear_cache
-from .cache import default_cache_dir as default_cache_dir
-from .cache import memoized_has as memoized_has
-from .cache import memory_cache_max_bytes as memory_cache_max_bytes
-from .cache import set_cache as set_cache
-from .memory import peak_memory as peak_memory
-
-# the process's in-memory entries under their former name: tests/pipelines/test_batch.py counts them
-# (o3dheat.spectral.cache.SPECTRA is their home; drop this once that test reads it there)
-_MEMORY = SPECTRA.entries
-
 __all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "shared_eigensolve", "inverse_mass_bound"]
 
 log = logging.getLogger("o3dheat")

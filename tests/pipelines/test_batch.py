@@ -72,7 +72,7 @@ def test_sequential_table_outputs_and_resume(scans, tmp_path):
     assert (t["seconds"] > 0).all() and (t["error"] == "").all()
     import o3dheat.spectral.spectrum
 
-    assert len(o3dheat.spectral.spectrum._MEMORY) == 0  # a file's spectra are freed before the next file
+    assert len(o3dheat.spectral.cache.SPECTRA.entries) == 0  # a file's spectra are freed before the next file
     direct = Chain(STEPS)(read_mesh(scans / "m1.ply"))
     got, _ = _attributes(out / "m1.ply")
     assert set(got) == {"positions", "height", "height_smooth", "colors"}

@@ -122,7 +122,7 @@ def test_every_filter_follows_the_column_rule(sphere):
 def test_one_column_is_checked_before_the_eigensolve(sphere, monkeypatch):
     import o3dheat.spectral.spectrum as spectrum
 
-    o3dheat.spectral.spectrum.clear_cache()
+    o3dheat.spectral.cache.clear_cache()
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: pytest.fail("eigensolve called"))
     m = flt.apply(sphere, "scalar", kind="noise", attribute="positions")
     for name, params in [("heat_smooth", {"k": 20}), ("critical_points", {}), ("feature_approx", {"k": 20})]:
@@ -146,7 +146,7 @@ def test_summaries_and_help_are_plain_text():
 def test_a_chain_solves_the_eigenproblem_once(sphere, monkeypatch):
     import o3dheat.spectral.spectrum as spectrum
 
-    o3dheat.spectral.spectrum.clear_cache()
+    o3dheat.spectral.cache.clear_cache()
     calls = []
     real = spectrum.eigensolve
     monkeypatch.setattr(spectrum, "eigensolve", lambda *a, **k: calls.append(1) or real(*a, **k))

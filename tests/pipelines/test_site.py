@@ -69,12 +69,12 @@ def test_filters_on_point_clouds(operators):
 
 
 def test_disk_cache_skips_the_eigensolve(sphere, tmp_path):
-    o3dheat.spectral.spectrum.clear_cache()
+    o3dheat.spectral.cache.clear_cache()
     flt.set_disk_cache(tmp_path)
     try:
         flt.apply(sphere, "hks", k=12)
         assert len(list(tmp_path.glob("spectrum-*.npz"))) == 1
-        o3dheat.spectral.spectrum.clear_cache()  # a new session: the disk cache answers
+        o3dheat.spectral.cache.clear_cache()  # a new session: the disk cache answers
         spec = flt.shared_spectrum(sphere.vertex.positions.numpy(), sphere.triangle.indices.numpy(), k=12)
         assert spec.timings["cache"] is True
     finally:
@@ -125,7 +125,7 @@ def test_a_point_cloud_is_reconstructed_once_per_chain_and_degenerate_clouds_are
     import logging
 
     import o3dheat.geometry.points as points
-    import o3dheat.spectral.spectrum as S
+    import o3dheat.spectral.cache as S
 
     S.clear_cache()
     calls = []
