@@ -24,7 +24,7 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
-from o3dheat.errors import SolverError
+from o3dheat.errors import MeshError
 
 __all__ = ["CHUNK", "background", "blas_one_thread", "get_threads", "row_parts", "run", "threads"]
 
@@ -60,7 +60,7 @@ def get_threads():
 
     Raises
     ------
-    SolverError
+    MeshError
         ``O3DHEAT_NUM_THREADS`` is not a positive integer.
 
     Examples
@@ -89,7 +89,7 @@ def _check(n, what):
     except (TypeError, ValueError):
         value = 0
     if isinstance(n, bool) or value < 1 or (not isinstance(n, str) and value != n):
-        raise SolverError(f"{what} must be a positive integer, got {n!r}")
+        raise MeshError(f"{what} must be a positive integer, got {n!r}")
     return min(value, _MAX_THREADS)
 
 

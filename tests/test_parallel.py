@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from o3dheat import parallel
-from o3dheat.errors import SolverError
+from o3dheat.errors import MeshError
 
 
 def test_thread_count_from_environment_and_context(monkeypatch):
@@ -28,13 +28,13 @@ def test_thread_count_from_environment_and_context(monkeypatch):
 @pytest.mark.parametrize("bad", ["0", "-2", "two", "1.5"])
 def test_bad_environment_value_is_named(monkeypatch, bad):
     monkeypatch.setenv("O3DHEAT_NUM_THREADS", bad)
-    with pytest.raises(SolverError, match="O3DHEAT_NUM_THREADS"):
+    with pytest.raises(MeshError, match="O3DHEAT_NUM_THREADS"):
         parallel.get_threads()
 
 
 @pytest.mark.parametrize("bad", [0, -1, 1.5, True, "x", None])
 def test_bad_thread_count_is_named(bad):
-    with pytest.raises(SolverError, match="positive integer"), parallel.threads(bad):
+    with pytest.raises(MeshError, match="positive integer"), parallel.threads(bad):
         pass
 
 

@@ -43,7 +43,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike
 
 from o3dheat import parallel
-from o3dheat.errors import SolverError
+from o3dheat.errors import MeshError, SolverError
 
 from ._cholmod import Analysis, CholmodFactor, NotPositiveDefinite, factor_nnz, library
 from .memory import OutOfMemory, check_memory
@@ -144,12 +144,12 @@ class Factor:
         """
         b = np.asarray(b, dtype=np.float64)
         if b.shape[0] != self.shape[0]:
-            raise SolverError(f"right-hand side has {b.shape[0]} rows, the matrix {self.shape[0]}")
+            raise MeshError(f"right-hand side has {b.shape[0]} rows, the matrix {self.shape[0]}")
         if out is None:
             x = self._solve(b)
         else:
             if out.shape != b.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
-                raise SolverError(f"out must be a C-ordered float64 array of shape {b.shape}")
+                raise MeshError(f"out must be a C-ordered float64 array of shape {b.shape}")
             into = getattr(self._solve, "into", None)
             x = into(b, out) if into is not None else out
             if into is None:
@@ -215,7 +215,7 @@ def analyze(A: sp.spmatrix, mode: str = "auto") -> Analysis | None:
 
 def _auto_mode(mode, n):
     if mode not in MODES:
-        raise SolverError(f"unknown mode {mode!r}: use one of {MODES}")
+        raise MeshError(f"unknown mode {mode!r}: use one of {MODES}")
     if mode == "auto":
         return "supernodal" if n >= SUPERNODAL_MIN_N else "simplicial"
     return mode
@@ -370,9 +370,10 @@ def factorize(A: sp.spmatrix, backend: str = "auto", mode: str = "auto", analysi
 
     Raises
     ------
+    MeshError
+        ``A`` is not square or has non-finite entries, or an unknown backend or mode.
     SolverError
-        ``A`` is not square or has non-finite entries, the requested backend is missing, or
-        every backend failed.
+        The requested backend is missing, or every backend failed.
 
     Examples
     --------
@@ -386,13 +387,13 @@ def factorize(A: sp.spmatrix, backend: str = "auto", mode: str = "auto", analysi
     elif backend in BACKENDS:
         order = [backend]
     else:
-        raise SolverError(f"unknown backend {backend!r}: use 'auto' or one of {BACKENDS}")
+        raise MeshError(f"unknown backend {backend!r}: use 'auto' or one of {BACKENDS}")
     A = sp.csc_matrix(A, dtype=np.float64)
     if A.shape[0] != A.shape[1]:
-        raise SolverError(f"the matrix to factorize must be square, got shape {A.shape}")
+        raise MeshError(f"the matrix to factorize must be square, got shape {A.shape}")
     mode = _auto_mode(mode, A.shape[0])
     if not np.all(np.isfinite(A.data)):
-        raise SolverError("the matrix to factorize has NaN or infinite entries: check the mesh "
+        raise MeshError("the matrix to factorize has NaN or infinite entries: check the mesh "
                           "coordinates and the shift")
     errors = []
     for name in order:

@@ -9,7 +9,7 @@ from conftest import irregular
 import o3dheat.spectral._cholmod as ch
 import o3dheat.spectral.linalg as la
 import o3dheat.spectral.memory as mm
-from o3dheat.errors import SolverError
+from o3dheat.errors import MeshError
 from o3dheat.spectral import fem
 
 needs_cholmod = pytest.mark.skipif("cholmod" not in la.available_backends(), reason="scikit-sparse not installed")
@@ -33,13 +33,13 @@ def test_auto_mode_is_supernodal_for_large_matrices_only():
     assert la._auto_mode("auto", la.SUPERNODAL_MIN_N - 1) == "simplicial"
     assert la._auto_mode("auto", la.SUPERNODAL_MIN_N) == "supernodal"
     assert la._auto_mode("simplicial", 10**7) == "simplicial"
-    with pytest.raises(SolverError, match="unknown mode"):
+    with pytest.raises(MeshError, match="unknown mode"):
         la.factorize(sp.identity(3, format="csc"), mode="fast")
 
 
 def test_wrong_right_hand_side_is_named(spd):
     f = la.factorize(spd)
-    with pytest.raises(SolverError, match="rows"):
+    with pytest.raises(MeshError, match="rows"):
         f.solve(np.ones(spd.shape[0] + 1))
 
 
@@ -49,7 +49,7 @@ def test_wrong_right_hand_side_is_named(spd):
     (sp.diags([1.0, np.inf, 2.0], format="csc"), "NaN or infinite"),
 ])
 def test_bad_matrices_are_named(A, match):
-    with pytest.raises(SolverError, match=match):
+    with pytest.raises(MeshError, match=match):
         la.factorize(A)
 
 
@@ -99,7 +99,7 @@ def test_solve_into_a_given_array(spd, backend):
     assert x is out
     np.testing.assert_array_equal(out, f.solve(b))
     for bad in (np.empty((spd.shape[0], 5)), np.empty(b.shape, order="F"), np.empty(b.shape, np.float32)):
-        with pytest.raises(SolverError, match="out must be"):
+        with pytest.raises(MeshError, match="out must be"):
             f.solve(b, out=bad)
 
 
