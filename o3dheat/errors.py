@@ -6,7 +6,7 @@ Every error raised on purpose by o3dheat is a :class:`MeshError` (a ``ValueError
 what to do about it.
 """
 
-__all__ = ["MeshError", "SolverError", "ConvergenceError"]
+__all__ = ["MeshError", "NoSuchFile", "SolverError", "ConvergenceError"]
 
 
 class MeshError(ValueError):
@@ -21,6 +21,24 @@ class MeshError(ValueError):
     ... except o3dheat.MeshError as e:
     ...     print("empty" in str(e))
     True
+    """
+
+
+class NoSuchFile(MeshError, FileNotFoundError):
+    """A path given as input that names no file: a bad argument (a :class:`MeshError`) and the file
+    system's answer (a ``FileNotFoundError``, so an ``OSError``), caught by either. Raised where
+    o3dheat checks its inputs before reading them (mesh files, chain files, batch inputs); a file
+    that exists but cannot be read gives the file system's own ``OSError``.
+
+    Examples
+    --------
+    >>> import o3dheat
+    >>> from o3dheat.errors import NoSuchFile
+    >>> try:
+    ...     o3dheat.io.read_mesh("/no/such/mesh.ply")
+    ... except FileNotFoundError as e:
+    ...     print(type(e).__name__, isinstance(e, o3dheat.MeshError), e)
+    NoSuchFile True no such file: /no/such/mesh.ply
     """
 
 

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from o3dheat.errors import MeshError
+from o3dheat.errors import MeshError, NoSuchFile
 
 from ._geometry import attributes
 from ._npz import read_npz, write_npz
@@ -174,7 +174,7 @@ def read_geometry(path: PathLike) -> o3d.t.geometry.TriangleMesh | o3d.t.geometr
     """
     path = Path(path)
     if not path.is_file():
-        raise MeshError(f"no such file: {path}")
+        raise NoSuchFile(f"no such file: {path}")
     return READERS.get(path.suffix.lower(), _read_open3d_mesh)(path)
 
 

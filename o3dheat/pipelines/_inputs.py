@@ -11,7 +11,7 @@ import re
 from collections.abc import Sequence
 from pathlib import Path
 
-from o3dheat.errors import MeshError
+from o3dheat.errors import MeshError, NoSuchFile
 from o3dheat.io import WRITERS
 from o3dheat.typing import PathLike
 
@@ -77,7 +77,7 @@ def expand(patterns: PathLike | Sequence[PathLike], exclude: PathLike | None = N
             raise MeshError(f"{text} is a folder: give files or a pattern such as "
                             f"'{os.path.join(text, '*.ply')}'")
         elif not os.path.isfile(text):
-            raise MeshError(f"no such file: {text}")
+            raise NoSuchFile(f"no such file: {text}")
         else:
             matches = [text]
         for m in matches:

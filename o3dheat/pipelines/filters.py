@@ -27,7 +27,7 @@ from importlib import metadata
 from pathlib import Path
 
 from o3dheat import spectral
-from o3dheat.errors import MeshError
+from o3dheat.errors import MeshError, NoSuchFile
 from o3dheat.io import atomic_write_text, read_toml
 from o3dheat.typing import PathLike
 
@@ -437,7 +437,7 @@ class Chain:
         """
         path = Path(path)
         if not path.is_file():
-            raise MeshError(f"cannot read chain {path}: no such file")
+            raise NoSuchFile(f"cannot read chain {path}: no such file")
         data = read_toml(path)
         steps = data.get("filter")
         if not isinstance(steps, list) or not all(isinstance(s, dict) and "name" in s for s in steps):
