@@ -52,8 +52,8 @@ class FeatureApprox:
     lifetime : float or None
         Alternative to delta and keep_fraction (> 0, paper time convention): the features are the
         critical points whose track lives to this time under the heat flow of the field itself
-        (:func:`o3dheat.track_critical_points` over 40 log-spaced times up to it, with the
-        filter's method and variant; :meth:`o3dheat.Tracks.features`).
+        (:func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>` over 40 log-spaced times up to it, with the
+        filter's method and variant; :meth:`o3dheat.Tracks.features <o3dheat.topology.tracking.Tracks.features>`).
     variant : str
         The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).

@@ -50,7 +50,7 @@ class HeatSmooth:
     grid : str
         One of :data:`o3dheat.spectral.kernel.GRIDS`. "paper": ``t_i = (i / scales) / λ_k``; "log": from
         ``1/λ_k`` to ``2 ln(100)/λ_2`` (the whole range, to nearly constant). See
-        :meth:`o3dheat.HeatKernel.scales`.
+        :meth:`o3dheat.HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>`.
     variant : str
         The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
@@ -63,7 +63,7 @@ class HeatSmooth:
         One of :data:`o3dheat.spectral.heatflow.METHODS`. "spectral" (the default, the paper's
         computation): the truncated kernel on k eigenpairs, which is band-limited, so that ``k``
         smooths too (at the paper's scales more than ``t`` does). "exact": the full kernel
-        (:class:`o3dheat.HeatFlow`), to ``tol``: ``t`` alone smooths. Without ``times`` the scales
+        (:class:`o3dheat.HeatFlow <o3dheat.spectral.heatflow.HeatFlow>`), to ``tol``: ``t`` alone smooths. Without ``times`` the scales
         still come from the spectrum (the paper's ``t_i = (i/10)/λ_k``); give ``times`` to skip
         the eigensolve.
     tol : float

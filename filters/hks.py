@@ -31,7 +31,7 @@ class Hks:
     scales : int
         Number of scales of ``grid`` when ``times`` is not given (1 to 100000).
     grid : str
-        The scale grid, one of :data:`o3dheat.spectral.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales`).
+        The scale grid, one of :data:`o3dheat.spectral.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>`).
     times : list of float or None
         Times (paper convention ``exp(−λ t / 2)``), at least one, each >= 0; None: ``scales``
         times of ``grid``.

@@ -34,7 +34,7 @@ KIND_CODES = {"minimum": topology.MINIMUM, "saddle": topology.SADDLE, "maximum":
 @dataclass(frozen=True)
 class TracksFilter:
     """Follow the critical points of an attribute across the scales of its heat flow
-    (:func:`o3dheat.track_critical_points`) -> ``<attribute>_lifetime`` float64 per vertex, the
+    (:func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>`) -> ``<attribute>_lifetime`` float64 per vertex, the
     time its track lives to, and ``<attribute>_track_kind`` int8 (0 regular, 1 minimum, 2 saddle,
     3 maximum: the labels of the ``critical_points`` filter).
 
@@ -46,7 +46,7 @@ class TracksFilter:
     largest value of the output), not ``inf``: the values are finite, so that the other filters
     (``colorize``; filters refuse infinite attributes) and every file format take them, and
     thresholding at a time ``τ`` of the grid keeps exactly the features of
-    :meth:`o3dheat.Tracks.features` at ``τ``. Typically an extremum and a saddle
+    :meth:`o3dheat.Tracks.features <o3dheat.topology.tracking.Tracks.features>` at ``τ``. Typically an extremum and a saddle
     that cancel get the same lifetime, smaller than the surviving extrema's.
 
     Parameters
@@ -67,7 +67,7 @@ class TracksFilter:
     scales : int
         Number of log-spaced times after ``t = 0`` when ``times`` is not given (1 to 100000;
         default 40: a step of about 1.24x in time for 100 eigenpairs on a sphere, fine enough for the
-        matching of :func:`o3dheat.track_critical_points`).
+        matching of :func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>`).
     variant : str
         The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
@@ -77,7 +77,7 @@ class TracksFilter:
         the kernel's.
     method : str
         One of :data:`o3dheat.spectral.heatflow.METHODS`. "exact" (the default, unlike ``heat_smooth``):
-        the full kernel (:class:`o3dheat.HeatFlow`), to ``tol``. Tracking needs many scales, from
+        the full kernel (:class:`o3dheat.HeatFlow <o3dheat.spectral.heatflow.HeatFlow>`), to ``tol``. Tracking needs many scales, from
         small times where the truncated kernel is ``k``'s band-limited projection rather than
         ``Φ_t f`` (its critical points are the truncation's), and the exact flow at 40 times
         costs less than the eigensolve that places them (0.2 s against 1.4 s for 100 eigenpairs
@@ -87,7 +87,7 @@ class TracksFilter:
         Relative W-norm error of the exact method, in (0, 1).
     radius : float or None
         Largest distance (mesh units, > 0) a saddle moves between two scales; default 10 mean
-        edge lengths (see :func:`o3dheat.track_critical_points`).
+        edge lengths (see :func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>`).
     operators : {"reconstruct", "robust"}
         For point clouds (only "reconstruct": critical points need a surface); the outputs go to
         the points nearest the critical vertices of the reconstructed surface.

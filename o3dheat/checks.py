@@ -70,7 +70,7 @@ def field(f, n=None, name="f", ndim=(1, 2)):
 
 
 def count(x, name, minimum=1, maximum=1_000_000):
-    """``x`` as an int in ``[minimum, maximum]``, or a :class:`~o3dheat.MeshError` naming ``name``.
+    """``x`` as an int in ``[minimum, maximum]``, or a :class:`~o3dheat.errors.MeshError` naming ``name``.
 
     Examples
     --------

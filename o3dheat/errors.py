@@ -55,7 +55,7 @@ class SolverError(RuntimeError):
 
 class ConvergenceError(SolverError):
     """An iterative eigensolver stopped without converging (or could not run on so small a
-    problem); :func:`o3dheat.eigensolve` then falls back to the next method.
+    problem); :func:`o3dheat.eigensolve <o3dheat.spectral.spectrum.eigensolve>` then falls back to the next method.
 
     Examples
     --------

@@ -31,7 +31,7 @@ __all__ = ["MeshLike", "FieldLike", "TimesLike", "PathLike", "HasMesh"]
 @runtime_checkable
 class HasMesh(Protocol):
     """A mesh-like object: anything with a ``mesh`` attribute holding a :data:`MeshLike`
-    (:class:`o3dheat.Repaired`, :class:`o3dheat.geometry.sampling.Resampled`, or one of yours;
+    (:class:`o3dheat.Repaired <o3dheat.geometry.repairs.Repaired>`, :class:`o3dheat.geometry.sampling.Resampled`, or one of yours;
     followed by :func:`o3dheat.geometry.mesh.mesh_of`).
 
     Examples

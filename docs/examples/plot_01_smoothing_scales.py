@@ -48,7 +48,7 @@ fig = o3dheat.visualization.plot.fields(mesh, F, titles=[f"t = {t:.2g}" for t in
 # %%
 # Error and critical points across scales
 # ---------------------------------------
-# :func:`o3dheat.scale_space` gathers ``Φ_t f``, the error ``ε∞ = ‖f − Φ_t f‖∞ / ‖f‖∞``, the
+# :func:`o3dheat.scale_space <o3dheat.topology.approximation.scale_space>` gathers ``Φ_t f``, the error ``ε∞ = ‖f − Φ_t f‖∞ / ‖f‖∞``, the
 # variation between consecutive scales and the critical points at each scale (Fig. 1c,d).
 ss_paper = o3dheat.scale_space(K, f, t_paper)
 ss_log = o3dheat.scale_space(K, f, K.scales(20, grid="log"))

@@ -28,7 +28,7 @@ print(cp)                                  # M − s + m = χ = 2 for the (close
 # -----------------------
 # Each point is a homology class of the sublevel sets ``{f <= c}`` as ``c`` grows: a component
 # born at a minimum and merged at a saddle (dimension 0), or a loop born at a saddle and filled in
-# at a maximum (dimension 1). :func:`o3dheat.persistence` stores the latter as (maximum, saddle)
+# at a maximum (dimension 1). :func:`o3dheat.persistence <o3dheat.topology.diagrams.persistence>` stores the latter as (maximum, saddle)
 # pairs of the superlevel sets, which would lie below the diagonal;
 # :func:`o3dheat.visualization.charts.persistence_diagram` draws them as the sublevel sets' (saddle, maximum),
 # above it like the others. Noise makes many short-lived pairs near the diagonal, the shape's
@@ -41,7 +41,7 @@ diagram = o3dheat.visualization.plot.persistence_diagram(d, f, title="persistenc
 # %%
 # δ-simplification and the feature-driven approximation
 # -----------------------------------------------------
-# :func:`o3dheat.simplify_critical_points` keeps the critical points of high persistence, here
+# :func:`o3dheat.simplify_critical_points <o3dheat.topology.diagrams.simplify_critical_points>` keeps the critical points of high persistence, here
 # the 42% of them that the paper keeps in its Fig. 6. ``pr_A f`` is ``f`` on ``A`` and 0
 # elsewhere, so the global component is ``f`` diffused from the feature points only: its level
 # sets follow the global behaviour of ``f``, its values are lower the fewer points ``A`` has (each

@@ -72,9 +72,9 @@ def mesh_of(mesh: object) -> object:
     pair, else its ``mesh`` attribute (followed while it is another such object).
 
     This is the one mesh-like protocol of o3dheat: every function that takes a mesh (filters,
-    :func:`o3dheat.eigensolve`, :func:`o3dheat.critical_points`, ...) takes any object with a
+    :func:`o3dheat.eigensolve <o3dheat.spectral.spectrum.eigensolve>`, :func:`o3dheat.critical_points <o3dheat.topology.critical.critical_points>`, ...) takes any object with a
     ``mesh`` attribute holding an Open3D triangle mesh or a ``(V, F)`` pair -- a
-    :class:`o3dheat.geometry.repairs.Repaired` (:func:`o3dheat.repair`), a
+    :class:`o3dheat.geometry.repairs.Repaired` (:func:`o3dheat.repair <o3dheat.geometry.repairs.repair>`), a
     :class:`o3dheat.geometry.sampling.Resampled`, or one of yours.
     Other objects are returned as they are (the caller refuses them).
 
@@ -120,7 +120,7 @@ def note_repair(arrays: tuple[ArrayLike, ...], topic: str, message: str, *args: 
     """Log a repair (a warning on the ``o3dheat`` logger: welded vertices, dropped faces...) once
     per geometry and ``topic`` ("weld", "degenerate", "duplicate", "zero-area", "unreferenced"):
     the same mesh goes through :func:`o3dheat.geometry.welding.prepare` for its spectrum and through
-    :class:`o3dheat.topology.Surface` for its critical points, and a chain of filters reads it at
+    :class:`o3dheat.topology.Surface <o3dheat.topology.surface.Surface>` for its critical points, and a chain of filters reads it at
     each step; the user hears of each repair once. ``arrays`` (the geometry the repair is about,
     as the caller was given them: ``(V, F)`` or ``(F,)``) are fingerprinted with BLAKE2b (about
     50 ms for a million vertices); the last 64 notes are remembered.
@@ -326,7 +326,7 @@ class MeshReport:
     component, Euler characteristic, genus and non-manifold counts are those of the mesh every
     computation uses; the vertex and face counts are those of the input. ``split_vertices``:
     referenced vertices that coincide with another but stay apart (welding joins the copies a
-    triangle soup has, not the vertices an indexed mesh keeps separate, as :func:`o3dheat.repair` makes).
+    triangle soup has, not the vertices an indexed mesh keeps separate, as :func:`o3dheat.repair <o3dheat.geometry.repairs.repair>` makes).
 
     Examples
     --------
@@ -360,7 +360,7 @@ class MeshReport:
     @property
     def manifold(self) -> bool:
         """True when topology (critical points, persistence, level sets) accepts the mesh: faces
-        left, no non-manifold edge or vertex (what :class:`o3dheat.topology.Surface` checks)."""
+        left, no non-manifold edge or vertex (what :class:`o3dheat.topology.Surface <o3dheat.topology.surface.Surface>` checks)."""
         return self.used_faces != 0 and not self.non_manifold_edges and not self.non_manifold_vertices
 
     @property
@@ -404,7 +404,7 @@ def check_mesh(mesh: MeshLike, weld: bool = True) -> MeshReport:
     all); it counts the problems instead. The mesh is cleaned by the very function
     :func:`o3dheat.geometry.welding.prepare` uses (weld, then drop degenerate, duplicate and zero-area faces): the report
     describes the mesh that every computation uses, and its status names each repair and a
-    non-manifold edge or vertex (which :func:`o3dheat.critical_points` refuses): ``ok`` is then
+    non-manifold edge or vertex (which :func:`o3dheat.critical_points <o3dheat.topology.critical.critical_points>` refuses): ``ok`` is then
     False.
 
     Parameters

@@ -110,7 +110,7 @@ def _clean(V, F, vertex_map=None):
     """A 2-manifold: degenerate and duplicate faces dropped, then the faces at non-manifold edges
     and vertices (rare after a decimation or remeshing, fatal to the topology), unreferenced
     vertices removed; ``vertex_map`` (source -> V) is carried along. (Dropping, not splitting as
-    :func:`o3dheat.repair` does, keeps the vertex map one-to-one.)"""
+    :func:`o3dheat.repair <o3dheat.geometry.repairs.repair>` does, keeps the vertex map one-to-one.)"""
     F = np.asarray(F, dtype=np.int64)
     F = F[~degenerate(F)]
     _, first = unique_rows(np.sort(F, axis=1), return_index=True)

@@ -31,7 +31,7 @@ and ``D = diag(Pᵀ 1)`` the multiplicities, ``L_in = P D⁻¹ L D⁻¹ Pᵀ`` a
 kernel ``X_in D_t X_inᵀ B_in = P X D_t Xᵀ B D⁻¹ Pᵀ`` averages the copies and keeps constants.
 
 Welding joins copies only across edges with exactly two faces: coincident vertices with a fan
-of faces each (a pinched vertex of a triangle soup, the copies :func:`o3dheat.repair` makes) stay apart,
+of faces each (a pinched vertex of a triangle soup, the copies :func:`o3dheat.repair <o3dheat.geometry.repairs.repair>` makes) stay apart,
 and the weld's warning and :func:`o3dheat.geometry.mesh.check_mesh` (``split_vertices``) say how many. A soup cannot
 tell one vertex with two fans from two coincident vertices with a fan each; an indexed file
 (OBJ, PLY) can, and is taken as it is.

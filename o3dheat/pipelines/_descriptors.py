@@ -34,7 +34,7 @@ def compute(V, F, kernels, descriptors, k, times, axis, grid="paper", scales=10,
     Each kernel is built from its own spectrum (:func:`o3dheat.spectral.kernel.heat_kernel`). ``times``
     maps each kernel to its times; None (the reference sampling) takes each kernel's own scales
     (``grid``, ``scales``). With ``method="exact"`` the smoothed fields (and their critical points)
-    come from the full kernel (:class:`o3dheat.HeatFlow`); a sampling then needs no spectrum unless
+    come from the full kernel (:class:`o3dheat.HeatFlow <o3dheat.spectral.heatflow.HeatFlow>`); a sampling then needs no spectrum unless
     an HKS, the eigenvalues or its own scales are asked for."""
     V, F = aligned(V), aligned(F)
     k = min(k, len(V) - 2)

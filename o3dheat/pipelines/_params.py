@@ -72,7 +72,7 @@ def plain_text(text: str) -> str:
     Examples
     --------
     >>> from o3dheat.pipelines.filters import plain_text
-    >>> plain_text("Smooth ``f`` with\n    :func:`~o3dheat.spectral.kernel.smooth` (see :class:`HeatKernel <o3dheat.HeatKernel>`)::")
+    >>> plain_text("Smooth ``f`` with\n    :func:`~o3dheat.spectral.kernel.smooth` (see :class:`HeatKernel <o3dheat.spectral.kernel.HeatKernel>`)::")
     'Smooth f with smooth (see HeatKernel):'
     """
     def role(m):

@@ -13,10 +13,10 @@ Inputs are paths or glob patterns (expanded here: quote them in the shell; ``**`
 each folder once: links to folders are followed, and a link loop ends), each pattern's matches
 sorted by name; a file named twice (or by links) is run once. Patterns match no file of the output
 folder, so that it may lie inside the inputs' tree (``'scans/**/*.ply' --out scans/out``). Each input gives
-``OUT/<its stem>.ply`` (or ``.npz``), written atomically by :func:`o3dheat.io.write_geometry`
+``OUT/<its stem>.ply`` (or ``.npz``), written atomically by :func:`o3dheat.io.write_geometry <o3dheat.io.meshes.write_geometry>`
 (every vertex attribute, exactly): a file that exists is complete.
 
-Refused before any work, with a :class:`~o3dheat.MeshError` naming the culprits: a pattern that
+Refused before any work, with a :class:`~o3dheat.errors.MeshError` naming the culprits: a pattern that
 matches no file, a missing input, two inputs whose outputs would have the same name (names are
 compared without regard to case, for case-insensitive file systems), an output that would replace
 an input, and an output folder holding the results of another chain.

@@ -6,7 +6,7 @@ Entry points: :func:`session` (the ``scheduler`` argument made a client, closed 
 
 Notes
 -----
-The ``scheduler`` argument of :func:`o3dheat.robustness_study` and :func:`o3dheat.pipelines.batch.run`:
+The ``scheduler`` argument of :func:`o3dheat.robustness_study <o3dheat.pipelines.study.robustness_study>` and :func:`o3dheat.pipelines.batch.run`:
 
 * ``None``: a local Dask cluster started for the job and closed after it: one worker process per
   core (``os.cpu_count()``), one thread each, each pinned to a core of its own, no dashboard
@@ -172,7 +172,7 @@ def connect(scheduler: typing.Any, warm_up: bool = False) -> tuple:
     warm_up : bool
         Pay each worker's one-time costs at start: pymeshlab's first call in its main thread
         (:func:`o3dheat.geometry.sampling.warm_up`; for jobs that resample meshes) and the topology's
-        compiled loops (:func:`o3dheat.topology.warm_up`). With "sequential", in this process.
+        compiled loops (:func:`o3dheat.topology.warm_up <o3dheat.topology.critical.warm_up>`). With "sequential", in this process.
 
     Returns
     -------
@@ -285,7 +285,7 @@ def session(scheduler: typing.Any, warm_up: bool = False) -> typing.Iterator:
 def _warm_up():
     """The one-time costs of a process, paid now: pymeshlab's first call (in the main thread, see
     :func:`o3dheat.geometry.sampling.warm_up`) and loading the topology's compiled loops
-    (:func:`o3dheat.topology.warm_up`, 0.3 s per process: in a study it made every worker's first
+    (:func:`o3dheat.topology.warm_up <o3dheat.topology.critical.warm_up>`, 0.3 s per process: in a study it made every worker's first
     task slower)."""
     geometry.warm_up()
     topology.warm_up()
@@ -294,7 +294,7 @@ def _warm_up():
 def register_warm_up(client: typing.Any) -> None:
     """``pymeshlab``'s first call in each worker's main thread and the topology's compiled loops
     loaded, now and in workers that join later (see :func:`o3dheat.geometry.sampling.warm_up` and
-    :func:`o3dheat.topology.warm_up`).
+    :func:`o3dheat.topology.warm_up <o3dheat.topology.critical.warm_up>`).
 
     Examples
     --------

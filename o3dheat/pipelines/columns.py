@@ -170,7 +170,7 @@ def check_writable(name: str, columns: int | tuple[int, ...] | None = None,
     of every filter's outputs, run by :meth:`~o3dheat.pipelines.filters.Chain.check` on what each ``plan`` says it writes,
     by the built-in filters before their work (their plan) and when they write.
 
-    Refused, as :func:`o3dheat.io.write_mesh` would refuse them after the work: :data:`PROTECTED`
+    Refused, as :func:`o3dheat.io.write_mesh <o3dheat.io.meshes.write_mesh>` would refuse them after the work: :data:`PROTECTED`
     (the geometry itself); a name that is not printable ASCII without spaces (a PLY property is
     one header token; empty text neither); :data:`PLY_RESERVED` names, ``alpha`` of several
     columns and ``o3dheat_colors*`` (PLY properties of their own); and :data:`SHAPED` names

@@ -131,7 +131,7 @@ def persistence() -> typing.Any:
 
 def fraction() -> typing.Any:
     """``keep_fraction``: a fraction in [0, 1] (None: not given), as
-    :func:`o3dheat.simplify_critical_points` takes it.
+    :func:`o3dheat.simplify_critical_points <o3dheat.topology.diagrams.simplify_critical_points>` takes it.
 
     Examples
     --------
@@ -428,7 +428,7 @@ def kernel_of(site: Site, k: int, variant: str = "weighted", normalize: str | No
 
 
 def flow_of(site: Site, variant: str = "weighted", normalize: str | None = None, tol: float = 1e-8) -> HeatFlow:
-    """The full heat kernel ``variant`` (:class:`o3dheat.HeatFlow`) of the site's surface (its
+    """The full heat kernel ``variant`` (:class:`o3dheat.HeatFlow <o3dheat.spectral.heatflow.HeatFlow>`) of the site's surface (its
     operators and factors cached for the chain), to ``tol``; robust-laplacian's operators for point
     clouds with ``operators="robust"`` ("weighted" only).
 

@@ -21,7 +21,7 @@ height along the reference's longest axis), "smooth_curvature" (``Φ_t`` of the 
 curvature), "eigenvalues" (λ_2..λ_k of the kernel's own eigenproblem, one row with scale 0),
 "critical_points" (the number of critical points of the smoothed height; both metrics are
 ``|c − c_ref| / c_ref``) and "track_lifetime" (do the extrema of the smoothed height live as long?
-:func:`o3dheat.track_critical_points` over the kernel's times on each sampling; at scale j, the 10
+:func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>` over the kernel's times on each sampling; at scale j, the 10
 extremum tracks of the reference alive at j that live longest (ties: the more persistent at j)
 are each matched to the nearest track of the same kind alive at j on the resampling, within 5% of
 the reference's bounding-box diagonal; with ``L = t_last / t_j`` the factor of time a track lives
@@ -202,12 +202,12 @@ def robustness_study(meshes: dict[str, MeshLike], resamplings: dict | list | str
     progress : bool, optional
         A progress bar (default: when stderr is a terminal).
     grid : str
-        The scale grid, one of :data:`o3dheat.spectral.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales`), on
+        The scale grid, one of :data:`o3dheat.spectral.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>`), on
         each kernel's reference spectrum.
     method : str
         How the smoothed descriptors ("smooth_height", "smooth_curvature", "critical_points") are
         computed, one of :data:`o3dheat.spectral.heatflow.METHODS`: "spectral" (the truncated kernel on
-        k eigenpairs, the paper's) or "exact" (the full kernel, :class:`o3dheat.HeatFlow`: the
+        k eigenpairs, the paper's) or "exact" (the full kernel, :class:`o3dheat.HeatFlow <o3dheat.spectral.heatflow.HeatFlow>`: the
         truncation no longer smooths, and resamplings need no eigensolve for these descriptors).
         The scales stay those of each kernel's reference spectrum either way.
 

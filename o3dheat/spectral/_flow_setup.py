@@ -3,9 +3,9 @@
 Entry points: :func:`shift_groups` and :func:`shift` (re-exported by
 :mod:`o3dheat.spectral.heatflow`), :class:`Operators` (L, W, the parts, a spectral bound, the
 symbolic analysis of the factors' pattern), :class:`Shifted` (a factor of ``W + γL``),
-:func:`check_operators` (the operators of :meth:`o3dheat.HeatFlow.from_operators`),
+:func:`check_operators` (the operators of :meth:`o3dheat.HeatFlow.from_operators <o3dheat.spectral.heatflow.HeatFlow.from_operators>`),
 :func:`unit_columns`, :func:`null_parts`, :func:`geometry_key`, and the steps around the
-propagation of :meth:`o3dheat.HeatFlow.apply`: :func:`time_order`, :func:`check_converged`,
+propagation of :meth:`o3dheat.HeatFlow.apply <o3dheat.spectral.heatflow.HeatFlow.apply>`: :func:`time_order`, :func:`check_converged`,
 :func:`finish`; :class:`FlowReport` (re-exported by :mod:`o3dheat.spectral.heatflow`) and
 :func:`check_transfer`.
 """
@@ -285,7 +285,7 @@ def finish(U, F, units, order, zero, in_order):
 def check_transfer(phi, lam_max, unit):
     """Refuse a transfer function whose full kernel does not exist: φ decreasing without bound
     at high frequencies (exp(−(t/2) φ) would amplify them more, the finer the mesh). ``phi``: from
-    :func:`o3dheat.spectral.kernel.transfer_function`; ``lam_max``: a bound of the operator's largest
+    :func:`o3dheat.spectral.kernel.transfer_function <o3dheat.spectral.variants.transfer_function>`; ``lam_max``: a bound of the operator's largest
     eigenvalue (None: none known); ``unit``: the operator's factor (1, or 1/λ_2)."""
     coef = phi.coefficients
     if coef is not None:
@@ -310,7 +310,7 @@ def check_transfer(phi, lam_max, unit):
 
 @dataclass
 class FlowReport:
-    """How :meth:`o3dheat.HeatFlow.apply` computed its result.
+    """How :meth:`o3dheat.HeatFlow.apply <o3dheat.spectral.heatflow.HeatFlow.apply>` computed its result.
 
     Attributes
     ----------

@@ -1,9 +1,9 @@
-"""Spectra on disk: the signed entries of the spectrum cache, and the ``.npz`` files of :meth:`o3dheat.Spectrum.save`.
+"""Spectra on disk: the signed entries of the spectrum cache, and the ``.npz`` files of :meth:`o3dheat.Spectrum.save <o3dheat.spectral.spectrum.Spectrum.save>`.
 
 Entry points: :func:`cache_load`, :func:`cache_save`, :func:`prune` (the signed entries read and
 written by :mod:`o3dheat.spectral.cache`), :func:`spectrum_arrays`, :func:`read_spectrum` and
-:func:`check_loaded` (the self-contained files of :meth:`~o3dheat.Spectrum.save` and
-:meth:`~o3dheat.Spectrum.load`); written with :func:`o3dheat.io.atomic_write`.
+:func:`check_loaded` (the self-contained files of :meth:`~o3dheat.spectral.spectrum.Spectrum.save` and
+:meth:`~o3dheat.spectral.spectrum.Spectrum.load`); written with :func:`o3dheat.io.atomic_write <o3dheat.io.files.atomic_write>`.
 
 Notes
 -----
@@ -186,7 +186,7 @@ _DENSE = ("eigenvalues", "eigenvectors", "areas", "residuals")
 
 
 def spectrum_arrays(s):
-    """The members of a :meth:`o3dheat.Spectrum.save` file (plain arrays, no pickles)."""
+    """The members of a :meth:`o3dheat.Spectrum.save <o3dheat.spectral.spectrum.Spectrum.save>` file (plain arrays, no pickles)."""
     out = {"format": np.array(FORMAT), "mass_kind": np.array(s.mass_kind), "backend": np.array(s.backend),
            "sigma": np.array(float(s.sigma))}
     out.update({name: np.asarray(getattr(s, name), dtype=np.float64) for name in _DENSE})
@@ -202,7 +202,7 @@ def spectrum_arrays(s):
 
 
 def read_spectrum(path):
-    """The fields of a :class:`o3dheat.Spectrum` from a :meth:`~o3dheat.Spectrum.save` file,
+    """The fields of a :class:`o3dheat.Spectrum <o3dheat.spectral.spectrum.Spectrum>` from a :meth:`~o3dheat.spectral.spectrum.Spectrum.save` file,
     unchecked (the caller checks them); a MeshError when the file is not one, an OSError (naming
     the path) when it cannot be read (missing, a folder, no permission)."""
     path = Path(path)
@@ -233,7 +233,7 @@ def read_spectrum(path):
 
 
 def check_loaded(s, path):
-    """The checks of :meth:`o3dheat.Spectrum.load` (a MeshError naming the first that fails)."""
+    """The checks of :meth:`o3dheat.Spectrum.load <o3dheat.spectral.spectrum.Spectrum.load>` (a MeshError naming the first that fails)."""
     lam, X, L, B = s.eigenvalues, s.eigenvectors, s.stiffness, s.mass
     n, k = X.shape
     shapes = {"stiffness": L.shape, "mass": B.shape}

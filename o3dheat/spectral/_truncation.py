@@ -1,8 +1,8 @@
-"""The truncation bounds of :class:`o3dheat.HeatKernel`: what the eigenpairs above ``λ_k`` would add.
+"""The truncation bounds of :class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>`: what the eigenpairs above ``λ_k`` would add.
 
 Entry points: :func:`truncation_bound` and :func:`suggest_k` (methods of
-:class:`~o3dheat.HeatKernel`, defined here and bound there), :func:`hks_bound` (the bound of
-:meth:`~o3dheat.HeatKernel.hks`), :func:`top_rate`.
+:class:`~o3dheat.spectral.kernel.HeatKernel`, defined here and bound there), :func:`hks_bound` (the bound of
+:meth:`~o3dheat.spectral.kernel.HeatKernel.hks`), :func:`top_rate`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from .variants import transfer_function
 
 
 def top_rate(kernel):
-    """The largest rate φ(λ_k) of a :class:`~o3dheat.HeatKernel`, a lower bound of every dropped
+    """The largest rate φ(λ_k) of a :class:`~o3dheat.spectral.kernel.HeatKernel`, a lower bound of every dropped
     rate when φ increases (refused for a transfer function not known to increase)."""
     phi = transfer_function(kernel.transfer)
     if phi is not None and (phi.coefficients is None or np.any(phi.coefficients < 0)):

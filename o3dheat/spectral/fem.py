@@ -18,7 +18,7 @@ Conventions (the paper's eq. (3), sign flipped so that L is positive semi-defini
 * lumped mass: ``diag(B 1)`` (a third of the area of the triangles at a vertex);
   Voronoi mass: ``diag(a)`` with the mixed Voronoi areas ``a`` of Meyer et al. (2003).
 
-All functions take ``V (n, 3) float64`` and ``F (m, 3) int`` arrays (see :func:`o3dheat.as_arrays`)
+All functions take ``V (n, 3) float64`` and ``F (m, 3) int`` arrays (see :func:`o3dheat.as_arrays <o3dheat.geometry.mesh.as_arrays>`)
 and return ``scipy.sparse.csc_matrix`` of shape ``(n, n)``, float64.
 """
 
@@ -36,7 +36,7 @@ __all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "operators", "adj
            "gaussian_curvature", "MASS_KINDS", "check_mass_kind"]
 
 #: mass kind -> what the matrix is: the one definition of the masses of ``L x = λ B x``, used by
-#: :func:`o3dheat.eigensolve`, :func:`o3dheat.diffuse`, the kernel variants
+#: :func:`o3dheat.eigensolve <o3dheat.spectral.spectrum.eigensolve>`, :func:`o3dheat.diffuse <o3dheat.spectral.diffusion.diffuse>`, the kernel variants
 #: (:data:`o3dheat.spectral.kernel.VARIANTS` names a mass of this table) and the command (``--mass``)
 MASS_KINDS = {
     "consistent": "the paper's consistent FEM mass B, B_rs = (|t_r| + |t_s|)/12, B_ii = Σ|t|/6",
@@ -47,7 +47,7 @@ MASS_KINDS = {
 
 
 def check_mass_kind(kind: str) -> str:
-    """``kind`` if it is a key of :data:`MASS_KINDS`, else a :class:`~o3dheat.MeshError` listing them.
+    """``kind`` if it is a key of :data:`MASS_KINDS`, else a :class:`~o3dheat.errors.MeshError` listing them.
 
     Examples
     --------

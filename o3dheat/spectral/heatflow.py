@@ -7,7 +7,7 @@ Entry points: :func:`heat_flow` (one call), :class:`HeatFlow` (many fields and t
 
 Notes
 -----
-Why: the spectral kernel ``X_k D_t X_kᵀ W f`` of :class:`o3dheat.HeatKernel` is band-limited to
+Why: the spectral kernel ``X_k D_t X_kᵀ W f`` of :class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>` is band-limited to
 the ``k`` smallest eigenpairs. At the paper's scales ``t_i = (i/10)/λ_k`` the dropped eigenpairs
 would keep ``exp(−λ_k t_1 / 2) = 95%`` of their weight in the full kernel, so there the truncation,
 not ``t``, does the smoothing. The full kernel ``K_t = exp(−(t/2) W⁻¹L)`` is the one of eq.
@@ -19,7 +19,7 @@ the method, its cost (about 27 solves for the paper's ten scales, at any mesh si
 benchmarks are in the documentation's details (``docs/details/heatflow.md``), and why "spectral"
 stays the default of the filters and the studies in its conventions page.
 
-Conventions are those of :class:`o3dheat.HeatKernel`: time ``exp(−λ t / 2)``,
+Conventions are those of :class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>`: time ``exp(−λ t / 2)``,
 ``normalize="lambda2"`` divides the operator by its first non-zero eigenvalue (a few eigenpairs
 are computed for that, once), a transfer function φ gives ``exp(−(t/2) φ(W⁻¹L))``, results are
 per input vertex (0 at unreferenced vertices, welded copies share their vertex's value).
@@ -68,7 +68,7 @@ __all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "shift_groups", "SPLI
 
 #: the two forms of ``Φ_t f`` (``method=`` of the ``heat_smooth`` and ``feature_approx`` filters,
 #: of :func:`o3dheat.pipelines.study.robustness_study` and ``o3dheat figure``): "spectral", the paper's
-#: truncated ``X_k D_t X_kᵀ W f`` (:class:`o3dheat.HeatKernel`), the default; "exact", the full
+#: truncated ``X_k D_t X_kᵀ W f`` (:class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>`), the default; "exact", the full
 #: kernel (:class:`HeatFlow`)
 METHODS = ("spectral", "exact")
 _OPERATORS = object()  # HeatFlow(mesh=_OPERATORS): made by from_operators
@@ -96,7 +96,7 @@ class HeatFlow:
         One of :data:`o3dheat.spectral.kernel.NORMALIZATIONS`; "lambda2" uses ``W⁻¹L / λ_2``, the
         scale-invariant kernel (λ_2 from a small eigensolve, once).
     transfer : callable or sequence of float, optional
-        A transfer function φ (§2.3), as for :class:`o3dheat.HeatKernel`: ``exp(−(t/2) φ(W⁻¹L))``.
+        A transfer function φ (§2.3), as for :class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>`: ``exp(−(t/2) φ(W⁻¹L))``.
         φ must be bounded below on ``[0, ∞)`` (a polynomial: a positive leading coefficient), or
         the full kernel does not exist (it amplifies the highest frequencies without bound).
     backend : str
@@ -105,8 +105,8 @@ class HeatFlow:
         Share the operators and factors through the in-memory cache.
     tol : float
         The default tolerance of :meth:`apply` (so that a HeatFlow stands in for a
-        :class:`o3dheat.HeatKernel` in :func:`o3dheat.scale_space` and
-        :func:`o3dheat.feature_driven`).
+        :class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>` in :func:`o3dheat.scale_space <o3dheat.topology.approximation.scale_space>` and
+        :func:`o3dheat.feature_driven <o3dheat.topology.approximation.feature_driven>`).
 
     Examples
     --------
@@ -286,7 +286,7 @@ class HeatFlow:
         -------
         ndarray
             ``(n,)`` or ``(n, c)`` for a scalar ``t``; ``(n, T)`` or ``(n, c, T)`` for an array,
-            like :meth:`o3dheat.HeatKernel.smooth`. With ``return_report``: ``(result, report)``.
+            like :meth:`o3dheat.HeatKernel.smooth <o3dheat.spectral.kernel.HeatKernel.smooth>`. With ``return_report``: ``(result, report)``.
 
         Raises
         ------
@@ -415,7 +415,7 @@ class HeatFlow:
 
     def error(self, f: FieldLike, t: TimesLike, tol: float | None = None) -> float | np.ndarray:
         """``ε∞ = ‖f − Φ_t f‖∞ / ‖f‖∞`` of the full kernel (0 when f = 0), like
-        :meth:`o3dheat.HeatKernel.error`.
+        :meth:`o3dheat.HeatKernel.error <o3dheat.spectral.kernel.HeatKernel.error>`.
 
         Examples
         --------
@@ -433,7 +433,7 @@ class HeatFlow:
         return d / nf if nf > 0 else d * 0.0
 
     def scales(self, count: int = 10, grid: str = "paper", k: int = 100) -> np.ndarray:
-        """The scale grids of :meth:`o3dheat.HeatKernel.scales`, which are defined by a spectrum
+        """The scale grids of :meth:`o3dheat.HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>`, which are defined by a spectrum
         (``λ_k`` of ``k`` eigenpairs, and ``λ_2``): computed here with
         :func:`o3dheat.spectral.spectrum.shared_eigensolve` (cached; this costs the eigensolve that the
         flow itself does not need: pass explicit times to avoid it).
@@ -476,7 +476,7 @@ def heat_flow(mesh: MeshLike, f: FieldLike, t: TimesLike, *, variant: str = "wei
     Returns
     -------
     ndarray
-        Shapes as :meth:`o3dheat.HeatKernel.smooth`: (n,), (n, T), (n, c) or (n, c, T).
+        Shapes as :meth:`o3dheat.HeatKernel.smooth <o3dheat.spectral.kernel.HeatKernel.smooth>`: (n,), (n, T), (n, c) or (n, c, T).
 
     Examples
     --------

@@ -1,7 +1,7 @@
 """The heat kernels of the paper and what is computed with them: :class:`HeatKernel`, :func:`heat_kernel`.
 
 Entry points: :func:`heat_kernel` (a mesh's kernel), :class:`HeatKernel` (on a
-:class:`~o3dheat.Spectrum`: the feature map Φ_t, heat kernel signatures, the paper's scales,
+:class:`~o3dheat.spectral.spectrum.Spectrum`: the feature map Φ_t, heat kernel signatures, the paper's scales,
 approximation errors, the canonic basis, the inverse, truncation bounds). The variants and the
 other lists (:data:`VARIANTS`, :data:`GRIDS`, :data:`HKS_FORMS`, :data:`NORMALIZATIONS`) are
 defined once in :mod:`o3dheat.spectral.variants` and reached here.
@@ -80,7 +80,7 @@ def heat_kernel(mesh: MeshLike, k: int = 100, variant: str = "weighted", normali
     normalize, transfer
         As for :class:`HeatKernel`.
     **eigensolve_options
-        Passed to :func:`o3dheat.eigensolve` (``cache``, ``method``, ``tol``...; not ``mass``).
+        Passed to :func:`o3dheat.eigensolve <o3dheat.spectral.spectrum.eigensolve>` (``cache``, ``method``, ``tol``...; not ``mass``).
 
     Returns
     -------
@@ -104,12 +104,12 @@ def heat_kernel(mesh: MeshLike, k: int = 100, variant: str = "weighted", normali
 
 
 class HeatKernel:
-    """Heat kernel ``K_t = X D_t Xᵀ W`` built on a :class:`~o3dheat.Spectrum`.
+    """Heat kernel ``K_t = X D_t Xᵀ W`` built on a :class:`~o3dheat.spectral.spectrum.Spectrum`.
 
     Parameters
     ----------
     spectrum : Spectrum
-        From :func:`o3dheat.eigensolve`.
+        From :func:`o3dheat.eigensolve <o3dheat.spectral.spectrum.eigensolve>`.
     variant : None or str
         The kernel, a key of :data:`VARIANTS`, whose mass must be the spectrum's: None takes the
         (first) variant of ``spectrum.mass_kind``; a variant whose mass differs is refused
@@ -263,7 +263,7 @@ class HeatKernel:
         return_bound : bool
             Also return the certificate of the truncation, :meth:`truncation_bound`: how far, at
             most, the result is from the full kernel's ``exp(−(t/2) W⁻¹L) f``
-            (:func:`o3dheat.heat_flow`), in W-norm relative to ``‖f‖_W``.
+            (:func:`o3dheat.heat_flow <o3dheat.spectral.heatflow.heat_flow>`), in W-norm relative to ``‖f‖_W``.
 
         Returns
         -------

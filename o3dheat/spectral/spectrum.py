@@ -88,7 +88,7 @@ class Spectrum:
         An upper bound of the diagonal of the inverse mass (of the welded vertex a vertex is a
         copy of; 0 at unreferenced vertices): the sum ``Σ_b x_b(i)²`` over a complete
         W-orthonormal eigenbasis, which bounds what a truncated spectrum leaves out of a heat
-        kernel signature (:meth:`o3dheat.HeatKernel.hks`). Exact for the diagonal masses;
+        kernel signature (:meth:`o3dheat.HeatKernel.hks <o3dheat.spectral.kernel.HeatKernel.hks>`). Exact for the diagonal masses;
         ``4 / (B 1)_i`` for the consistent mass (``B ⪰ D/4`` with ``D = diag(B 1)``: each
         element's mass is ``|t|/12 (I + 1 1ᵀ)``). None for a non-diagonal mass built elsewhere.
 

@@ -47,12 +47,12 @@ VARIANTS = {
     "voronoi": ("voronoi", "eq. (7): X D_t Xᵀ A, eigenpairs of L x = λ A x, A = Voronoi areas (§2.3)"),
     "lumped": ("lumped", "X D_t Xᵀ D, eigenpairs of L x = λ D x, D = lumped (row-sum) mass"),
 }
-#: scale grids of :meth:`o3dheat.HeatKernel.scales`
+#: scale grids of :meth:`o3dheat.HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>`
 GRIDS = ("paper", "log")
-#: heat kernel signature forms of :meth:`o3dheat.HeatKernel.hks`; the default everywhere is "density"
+#: heat kernel signature forms of :meth:`o3dheat.HeatKernel.hks <o3dheat.spectral.kernel.HeatKernel.hks>`; the default everywhere is "density"
 HKS_FORMS = ("density", "paper")
 HKS_DEFAULT = "density"
-#: eigenvalue normalisations of :class:`o3dheat.HeatKernel` (``normalize=``): None, or "lambda2" (divided by
+#: eigenvalue normalisations of :class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>` (``normalize=``): None, or "lambda2" (divided by
 #: the first non-zero eigenvalue: the scale-invariant kernel, §2.2)
 NORMALIZATIONS = (None, "lambda2")
 
@@ -92,7 +92,7 @@ def transfer_function(transfer: Callable | Sequence[float] | None) -> Callable |
     Returns
     -------
     callable or None
-        ``λ (k,) -> φ(λ) (k,)``, raising :class:`~o3dheat.MeshError` when φ does not map the
+        ``λ (k,) -> φ(λ) (k,)``, raising :class:`~o3dheat.errors.MeshError` when φ does not map the
         eigenvalues to as many finite values.
 
     Examples

@@ -10,8 +10,8 @@ Notes
   approximation errors, the variation between consecutive scales and the critical points of
   every scale, and tells where each stop criterion of §3.1 holds.
 
-Both take the spectral kernel (:class:`o3dheat.HeatKernel`, the paper's truncated ``X_k D_t X_kᵀ W``)
-or the full one (:class:`o3dheat.HeatFlow`, ``exp(−(t/2) W⁻¹L)`` without truncation): the same
+Both take the spectral kernel (:class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>`, the paper's truncated ``X_k D_t X_kᵀ W``)
+or the full one (:class:`o3dheat.HeatFlow <o3dheat.spectral.heatflow.HeatFlow>`, ``exp(−(t/2) W⁻¹L)`` without truncation): the same
 computation, with the smoothing each gives.
 """
 
@@ -137,10 +137,10 @@ class ScaleSpace:
     stopped : bool
         Whether the criterion held.
     tracks : Tracks or None
-        The critical points followed across the scales (:func:`o3dheat.track_critical_points`),
+        The critical points followed across the scales (:func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>`),
         with ``stop="tracks"``. A kernel carries faces, not positions: its saddles are matched only
         where they stay on their vertex (the stop rule reads the extrema only); for tracks with
-        moving saddles and positions, call :func:`o3dheat.track_critical_points` on the mesh.
+        moving saddles and positions, call :func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>` on the mesh.
 
     Examples
     --------
@@ -180,8 +180,8 @@ def scale_space(kernel: HeatKernel | HeatFlow, f: FieldLike, scales: TimesLike |
     Parameters
     ----------
     kernel : HeatKernel or HeatFlow
-        The spectral kernel (its spectrum from :func:`o3dheat.eigensolve`, which carries the
-        faces) or the full one (:class:`o3dheat.HeatFlow`).
+        The spectral kernel (its spectrum from :func:`o3dheat.eigensolve <o3dheat.spectral.spectrum.eigensolve>`, which carries the
+        faces) or the full one (:class:`o3dheat.HeatFlow <o3dheat.spectral.heatflow.HeatFlow>`).
     f : (n,) array_like
         The scalar field.
     scales : (T,) array_like, optional
@@ -192,7 +192,7 @@ def scale_space(kernel: HeatKernel | HeatFlow, f: FieldLike, scales: TimesLike |
         two consecutive scales have the same critical points (minima, saddles with
         multiplicity, maxima); "tracks": stop when no extremum is born or dies between two
         consecutive scales (the critical points followed along the gradient flow,
-        :func:`o3dheat.track_critical_points`: they may move, as they do under smoothing, where
+        :func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>`: they may move, as they do under smoothing, where
         "critical_points" asks for the same vertices; by the Morse relation the saddles' count
         is then the same too).
     tol : float, optional

@@ -6,7 +6,7 @@ Build it once and pass it instead of the mesh to analyse many fields on one mesh
 Notes
 -----
 * **The mesh** must be a 2-manifold, possibly with boundary and several components: every edge
-  in at most two faces and every vertex with one fan of faces (:class:`~o3dheat.MeshError`
+  in at most two faces and every vertex with one fan of faces (:class:`~o3dheat.errors.MeshError`
   otherwise, with advice). Faces repeating a vertex and duplicate faces are dropped with a
   warning; vertices referenced by no face are not part of the surface and never critical.
 * **Duplicate vertices** (referenced, exactly equal coordinates: STL files, triangle soups) are

@@ -54,7 +54,7 @@ class Tracks:
         The track's vertex at each scale, -1 where it does not live.
     persistence : (p, T) float64 ndarray
         Its persistence at each scale (``inf`` for an essential critical point, NaN where it does
-        not live): the largest persistence of the pairs of :func:`o3dheat.persistence` it belongs
+        not live): the largest persistence of the pairs of :func:`o3dheat.persistence <o3dheat.topology.diagrams.persistence>` it belongs
         to. Computed on first access (one diagram per scale; the tracking itself computes only the
         diagrams of the scales where an extremum ends) and kept; until then the tracks hold the
         checked copy of the fields (8 n T bytes).
@@ -161,7 +161,7 @@ class Tracks:
     def features(self, scale: int = -1) -> np.ndarray:
         """The critical vertices of the first field whose tracks live to ``scale`` (an index into
         :attr:`times`, default the last): the lifetime criterion of feature-driven approximation
-        (beside δ-persistence), A for :func:`o3dheat.feature_driven`.
+        (beside δ-persistence), A for :func:`o3dheat.feature_driven <o3dheat.topology.approximation.feature_driven>`.
 
         Examples
         --------
@@ -224,15 +224,15 @@ def track_critical_points(mesh: MeshLike | Surface, F: FieldLike, t: TimesLike,
 
     Parameters
     ----------
-    mesh : mesh-like or :class:`o3dheat.topology.Surface`
-        A 2-manifold triangle mesh (see :func:`o3dheat.critical_points`).
+    mesh : mesh-like or :class:`o3dheat.topology.Surface <o3dheat.topology.surface.Surface>`
+        A 2-manifold triangle mesh (see :func:`o3dheat.critical_points <o3dheat.topology.critical.critical_points>`).
     F : (n, T) array_like
         One field per scale, e.g. ``heat_flow(mesh, f, t)`` or ``HeatKernel(s).smooth(f, t)``.
     t : (T,) array_like
         Strictly increasing times (any unit: only their order and differences are used).
     radius : float, optional
         Largest distance (mesh units) a saddle moves between two scales; default 10 mean edge
-        lengths. A :class:`~o3dheat.topology.Surface` made from faces alone (no positions)
+        lengths. A :class:`~o3dheat.topology.surface.Surface` made from faces alone (no positions)
         matches a saddle only where it stays on its vertex: one that moves is a death and a birth
         (extrema, which follow the flow, are tracked as with positions).
 
@@ -247,9 +247,9 @@ def track_critical_points(mesh: MeshLike | Surface, F: FieldLike, t: TimesLike,
 
     Notes
     -----
-    Cost: per scale one :func:`o3dheat.critical_points` (O(m), compiled), a walk up (down) the
+    Cost: per scale one :func:`o3dheat.critical_points <o3dheat.topology.critical.critical_points>` (O(m), compiled), a walk up (down) the
     steepest edges from each maximum (minimum) of the scale before, compiled, over the vertices it
-    passes only, and bookkeeping in numpy over the critical points; :func:`o3dheat.persistence`
+    passes only, and bookkeeping in numpy over the critical points; :func:`o3dheat.persistence <o3dheat.topology.diagrams.persistence>`
     only at the scales where an extremum ends (its partner and the "most persistent" rule need
     it). The saddles' matching is a dense assignment, quadratic in the saddles of a scale. Measured
     (``scripts/bench_topology.py``): 100 scales of a smooth field on 200k vertices take 1.6 to 1.9
@@ -402,7 +402,7 @@ def _number(new_of, ids, nxt, p, kinds):
 
 
 class _Scale:
-    """The critical points of one scale by kind (vertex order of :func:`o3dheat.critical_points`)
+    """The critical points of one scale by kind (vertex order of :func:`o3dheat.critical_points <o3dheat.topology.critical.critical_points>`)
     and their multiplicities."""
 
     def __init__(self, cp):

@@ -50,7 +50,7 @@ def welded(V, F, values):
 def surface(V, F, values, level_sets, critical_points):
     """``(S, V, F, values)``: the checked surface, built once per mesh, when level sets or critical
     points are drawn (else None). A mesh that is not a 2-manifold (a scan with non-manifold edges
-    or vertices) is drawn as :func:`o3dheat.repair` makes it, with a warning: the same surface,
+    or vertices) is drawn as :func:`o3dheat.repair <o3dheat.geometry.repairs.repair>` makes it, with a warning: the same surface,
     each fan of faces with its own copy of a shared vertex (the copy keeps the vertex's value)."""
     wanted = (level_sets is not None and level_sets is not False) or critical_points is True
     if not wanted:
@@ -65,7 +65,7 @@ def surface(V, F, values, level_sets, critical_points):
 
 
 def repaired(V, F, values, why, what):
-    """``(V, F, values)`` of a non-manifold mesh as :func:`o3dheat.repair` makes it (split, not
+    """``(V, F, values)`` of a non-manifold mesh as :func:`o3dheat.repair <o3dheat.geometry.repairs.repair>` makes it (split, not
     reoriented), each copy of a vertex with its value, and a warning saying ``why`` and ``what``
     is made on it: the one repair of the drawings and the figure recipes."""
     r = repair((V, F), orient=False)

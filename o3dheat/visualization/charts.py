@@ -51,7 +51,7 @@ def scale_space(ss: ScaleSpace, title: str | None = None) -> Figure:
     Parameters
     ----------
     ss : ScaleSpace
-        From :func:`o3dheat.scale_space`.
+        From :func:`o3dheat.scale_space <o3dheat.topology.approximation.scale_space>`.
     title : str, optional
         Written above the chart.
 
@@ -117,7 +117,7 @@ def persistence_diagram(diagram: PersistenceDiagram, f: FieldLike | None = None,
     - dimension 0 (blue): a component born at a minimum, dying at the saddle where it merges
       with an older one;
     - dimension 1 (red): a loop born at a saddle, dying at the maximum that fills it in. The
-      diagram stores these pairs as ``(maximum, saddle)`` (:class:`o3dheat.topology.PersistenceDiagram`:
+      diagram stores these pairs as ``(maximum, saddle)`` (:class:`o3dheat.topology.PersistenceDiagram <o3dheat.topology.diagrams.PersistenceDiagram>`:
       read on superlevel sets, a maximum's cap born at its value and merged at the saddle's,
       birth above death); by the duality of a surface that is the same pair, and drawn here as
       ``(saddle, maximum)``, birth and death exchanged back, it is the 1-dimensional sublevel
@@ -131,7 +131,7 @@ def persistence_diagram(diagram: PersistenceDiagram, f: FieldLike | None = None,
     Parameters
     ----------
     diagram : PersistenceDiagram
-        From :func:`o3dheat.persistence`.
+        From :func:`o3dheat.persistence <o3dheat.topology.diagrams.persistence>`.
     f : (n,) array_like, optional
         The field, to place the essential classes (their values are not in the diagram).
     title : str, optional
@@ -202,7 +202,7 @@ def study(table: pd.DataFrame, descriptor: str = "hks_density", metric: str = "r
           title: str | None = None) -> Figure:
     """Discrepancy against the reference sampling vs scale, one line per kernel and one panel per
     resampling kind (averaged over meshes and resamplings of that kind), from
-    :func:`o3dheat.robustness_study`.
+    :func:`o3dheat.robustness_study <o3dheat.pipelines.study.robustness_study>`.
 
     Line panels share one logarithmic y range (the kinds compare at a glance) and put their
     ticks on the integer scale indices; when some discrepancies are exactly 0 the axis is
@@ -318,7 +318,7 @@ def lifetime_chart(tracks: Tracks, ax: Axes | None = None, title: str | None = N
     Parameters
     ----------
     tracks : Tracks
-        From :func:`o3dheat.track_critical_points`.
+        From :func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>`.
     ax : matplotlib.axes.Axes, optional
         Draw into this axes (default: a new figure).
     title : str, optional

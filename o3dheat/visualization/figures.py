@@ -46,7 +46,7 @@ def paper_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None,
                   seed: int = 0, name: str = "mesh", max_faces: int = 30000, up: str = "z",
                   tracks: bool = False) -> Path:
     """The kinds of the paper's Figs. 1–7 for one mesh, as PNGs with an ``index.md``; Fig. 1 also
-    with the full heat kernel (:class:`o3dheat.HeatFlow`), whose hierarchy the truncation hides.
+    with the full heat kernel (:class:`o3dheat.HeatFlow <o3dheat.spectral.heatflow.HeatFlow>`), whose hierarchy the truncation hides.
 
     Parameters
     ----------
@@ -322,9 +322,9 @@ def track_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None,
     (:func:`o3dheat.visualization.charts.lifetime_chart`, ``tracks_lifetimes.png``), with an ``index.md``.
 
     The field (as for :func:`paper_figures`) is smoothed by the exact heat flow
-    (:func:`o3dheat.heat_flow`) at ``t = 0`` and ``count - 1`` log-spaced times from the squared
+    (:func:`o3dheat.heat_flow <o3dheat.spectral.heatflow.heat_flow>`) at ``t = 0`` and ``count - 1`` log-spaced times from the squared
     mean edge length to ``2 ln(100) / λ_2`` (Φ_t f nearly constant), and its critical points
-    tracked (:func:`o3dheat.track_critical_points`).
+    tracked (:func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>`).
 
     Parameters
     ----------
@@ -365,7 +365,7 @@ def study_figures(table: pd.DataFrame, out: PathLike) -> list[Path]:
     Parameters
     ----------
     table : pandas.DataFrame
-        From :func:`o3dheat.robustness_study`; failed rows are left out.
+        From :func:`o3dheat.robustness_study <o3dheat.pipelines.study.robustness_study>`; failed rows are left out.
     out : str or Path
         An existing folder.
 

@@ -55,7 +55,7 @@ Levels = int | Sequence[float] | None
 
 
 def drawn_critical_points(mesh: MeshLike | Surface, f: FieldLike) -> CriticalPoints:
-    """The critical points the drawings show: those of :func:`o3dheat.critical_points` less the
+    """The critical points the drawings show: those of :func:`o3dheat.critical_points <o3dheat.topology.critical.critical_points>` less the
     ones on a part of the mesh where ``f`` is constant up to numerical error (it varies there by at
     most ``FLAT_RTOL`` times the largest ``|f|``), whose critical points are those of the errors.
 
@@ -208,7 +208,7 @@ def field(mesh: MeshLike, f: FieldLike, level_sets: Levels = 10, critical_points
         The field's name, written on the colorbar.
     renderer : {"auto", "open3d", "matplotlib"}
         "auto": Open3D's offscreen renderer, or matplotlib with a warning where it cannot start;
-        "open3d" raises :class:`o3dheat.MeshError` there instead; "matplotlib": 3D axes without
+        "open3d" raises :class:`o3dheat.MeshError <o3dheat.errors.MeshError>` there instead; "matplotlib": 3D axes without
         hidden-surface removal. "auto" follows the environment variable ``O3DHEAT_RENDERER``.
 
     Returns
@@ -338,7 +338,7 @@ def render(mesh: MeshLike, f: FieldLike, level_sets: Levels = 10, critical_point
 def tracks(mesh: MeshLike, tracks: Tracks, f: FieldLike | None = None, longest: int | None = None,
            view: tuple[float, float] = (20.0, -60.0), cmap: str = "Greys", title: str | None = None,
            size: float = 6.0, up: str = "z", label: str = "f", renderer: str = "auto") -> Figure:
-    """The critical points' tracks across scales on the surface (:func:`o3dheat.track_critical_points`).
+    """The critical points' tracks across scales on the surface (:func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>`).
 
     One polyline per track through its positions at the scales it lives at (minima blue, saddles
     green, maxima red: :data:`CRITICAL_COLORS`), and a marker where it ends (for a track alive at
@@ -355,7 +355,7 @@ def tracks(mesh: MeshLike, tracks: Tracks, f: FieldLike | None = None, longest: 
     mesh : mesh or (V, F)
         The mesh the tracks were made on (same vertices).
     tracks : Tracks
-        With vertex positions (as :func:`o3dheat.track_critical_points` makes them).
+        With vertex positions (as :func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>` makes them).
     f : (n,) or (n, T) array_like, optional
         The field; of (n, T) (one column per scale, as given to the tracking) the first column.
     longest : int, optional
