@@ -55,7 +55,7 @@ class FeatureApprox:
         (:func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>` over 40 log-spaced times up to it, with the
         filter's method and variant; :meth:`o3dheat.Tracks.features <o3dheat.topology.tracking.Tracks.features>`).
     variant : str
-        The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
+        The kernel, a key of :data:`o3dheat.spectral.variants.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
     k : int
         Eigenpairs of the spectral method (>= 1; capped at what the mesh has, with a warning); with
@@ -97,7 +97,7 @@ class FeatureApprox:
         checked(self)
         if sum(x is not None for x in (self.delta, self.keep_fraction, self.lifetime)) > 1:
             raise MeshError("give one of delta, keep_fraction and lifetime")
-        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.kernel.VARIANTS
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.variants.VARIANTS
 
     def plan(self, columns):
         """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).

@@ -48,14 +48,14 @@ class HeatSmooth:
     scales : int
         Number of scales of ``grid`` when ``times`` is not given (1 to 100000).
     grid : str
-        One of :data:`o3dheat.spectral.kernel.GRIDS`. "paper": ``t_i = (i / scales) / λ_k``; "log": from
+        One of :data:`o3dheat.spectral.variants.GRIDS`. "paper": ``t_i = (i / scales) / λ_k``; "log": from
         ``1/λ_k`` to ``2 ln(100)/λ_2`` (the whole range, to nearly constant). See
         :meth:`o3dheat.HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>`.
     variant : str
-        The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
+        The kernel, a key of :data:`o3dheat.spectral.variants.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
     normalize : None or str
-        One of :data:`o3dheat.spectral.kernel.NORMALIZATIONS`; "lambda2": the scale-invariant kernel.
+        One of :data:`o3dheat.spectral.variants.NORMALIZATIONS`; "lambda2": the scale-invariant kernel.
     k : int
         Eigenpairs of the spectral method (>= 1; capped at what the mesh has, with a warning); with
         "exact" they only place the default scales.
@@ -101,7 +101,7 @@ class HeatSmooth:
 
     def __post_init__(self):
         checked(self)
-        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.kernel.VARIANTS
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.variants.VARIANTS
 
     def _columns_out(self, c):
         """Columns of the output for an input of ``c`` columns (after ``column``); the refusal of

@@ -31,19 +31,19 @@ class Hks:
     scales : int
         Number of scales of ``grid`` when ``times`` is not given (1 to 100000).
     grid : str
-        The scale grid, one of :data:`o3dheat.spectral.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>`).
+        The scale grid, one of :data:`o3dheat.spectral.variants.GRIDS` (:meth:`o3dheat.HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>`).
     times : list of float or None
         Times (paper convention ``exp(−λ t / 2)``), at least one, each >= 0; None: ``scales``
         times of ``grid``.
     form : str
-        One of :data:`o3dheat.spectral.kernel.HKS_FORMS`: "density" (the default everywhere,
-        :data:`o3dheat.spectral.kernel.HKS_DEFAULT`): ``Σ e^{−λt/2} x(i)²`` (the usual HKS, stable across
+        One of :data:`o3dheat.spectral.variants.HKS_FORMS`: "density" (the default everywhere,
+        :data:`o3dheat.spectral.variants.HKS_DEFAULT`): ``Σ e^{−λt/2} x(i)²`` (the usual HKS, stable across
         samplings); "paper": the kernel diagonal ``Σ e^{−λt/2} x(i) (W x)(i)``.
     variant : str
-        The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
+        The kernel, a key of :data:`o3dheat.spectral.variants.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
     normalize : None or str
-        One of :data:`o3dheat.spectral.kernel.NORMALIZATIONS`; "lambda2": scale-invariant eigenvalues.
+        One of :data:`o3dheat.spectral.variants.NORMALIZATIONS`; "lambda2": scale-invariant eigenvalues.
     k : int
         Eigenpairs (>= 1; capped at what the mesh has, with a warning).
     output : str
@@ -73,7 +73,7 @@ class Hks:
 
     def __post_init__(self):
         checked(self)
-        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.kernel.VARIANTS
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.variants.VARIANTS
 
     def plan(self, columns):
         """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).

@@ -69,7 +69,7 @@ class TracksFilter:
         default 40: a step of about 1.24x in time for 100 eigenpairs on a sphere, fine enough for the
         matching of :func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>`).
     variant : str
-        The kernel, a key of :data:`o3dheat.spectral.kernel.VARIANTS` (each on the spectrum of its own mass;
+        The kernel, a key of :data:`o3dheat.spectral.variants.VARIANTS` (each on the spectrum of its own mass;
         "weighted" is the paper's).
     k : int
         Eigenpairs (>= 1; capped at what the mesh has, with a warning): with "exact" they only
@@ -122,7 +122,7 @@ class TracksFilter:
 
     def __post_init__(self):
         checked(self)
-        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.kernel.VARIANTS
+        mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.variants.VARIANTS
         if self.times and np.any(np.diff(self.times) <= 0):
             raise MeshError(f"tracks.times must be strictly increasing, got {self.times!r}")
 

@@ -79,7 +79,7 @@ study.toml:
   scales = 10
   grid = "paper"                     # <GRIDS>: each kernel's scales on its reference spectrum
   method = "spectral"                # <METHODS>: "exact" smooths with the full kernel
-  kernels = <VARIANTS>   # o3dheat.spectral.kernel.VARIANTS (default: all)
+  kernels = <VARIANTS>   # o3dheat.spectral.variants.VARIANTS (default: all)
   descriptors = ["hks_density", "hks_paper", "smooth_height", "eigenvalues"]
   [meshes]
   bunny = "builtin:bunny@20000"      # embedded, decimated to 20000 faces; or a file path

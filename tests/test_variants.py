@@ -24,7 +24,7 @@ def sphere():
 
 @pytest.fixture
 def twin(monkeypatch):
-    """A variant registered in o3dheat.spectral.kernel.VARIANTS only: a copy of "weighted" under a new name."""
+    """A variant registered in o3dheat.spectral.variants.VARIANTS only: a copy of "weighted" under a new name."""
     monkeypatch.setitem(kernel.VARIANTS, "twin", ("consistent", "the weighted kernel again, for a test"))
     return "twin"
 

@@ -21,7 +21,7 @@ from o3dheat.topology import Surface, critical_points, track_critical_points
 
 log = logging.getLogger("o3dheat")
 
-#: what a study measures: one HKS per form of :data:`o3dheat.spectral.kernel.HKS_FORMS`, then the others
+#: what a study measures: one HKS per form of :data:`o3dheat.spectral.variants.HKS_FORMS`, then the others
 DESCRIPTORS = tuple(f"hks_{form}" for form in kernel.HKS_FORMS) + (
     "smooth_height", "smooth_curvature", "eigenvalues", "critical_points", "track_lifetime")
 COLUMNS = ["mesh", "resampling", "kind", "kernel", "descriptor", "scale", "t", "rel_l2", "rel_linf",

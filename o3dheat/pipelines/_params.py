@@ -94,8 +94,8 @@ class OneOf:
     """A filter parameter's choices that are defined elsewhere and read when a value is checked,
     never copied: annotate the field ``typing.Annotated[str, OneOf(lambda: CHOICES)]``.
 
-    The built-in filters' ``variant`` is ``Annotated[str, OneOf(lambda: o3dheat.spectral.kernel.VARIANTS)]``:
-    a variant added to :data:`o3dheat.spectral.kernel.VARIANTS` is accepted at once, and :func:`~o3dheat.pipelines.filters.describe`
+    The built-in filters' ``variant`` is ``Annotated[str, OneOf(lambda: o3dheat.spectral.variants.VARIANTS)]``:
+    a variant added to :data:`o3dheat.spectral.variants.VARIANTS` is accepted at once, and :func:`~o3dheat.pipelines.filters.describe`
     lists the choices of the moment (as ``Literal[...]``, like a fixed ``typing.Literal``).
 
     Parameters

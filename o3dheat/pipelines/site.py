@@ -55,7 +55,7 @@ log = logging.getLogger("o3dheat")
 #: how point clouds get operators (``operators=`` of the filters)
 OPERATORS = ("reconstruct", "robust")
 #: parameter types shared by the filters, from the kernel module's single definitions; the variants
-#: are read when a value is checked, so that a variant added to o3dheat.spectral.kernel.VARIANTS (even at
+#: are read when a value is checked, so that a variant added to o3dheat.spectral.variants.VARIANTS (even at
 #: run time) is accepted by every filter at once
 Variant = Annotated[str, OneOf(lambda: kernel.VARIANTS)]
 Grid = Literal[kernel.GRIDS]
@@ -408,7 +408,7 @@ class Site:
 
 
 def kernel_of(site: Site, k: int, variant: str = "weighted", normalize: str | None = None) -> HeatKernel:
-    """The heat kernel ``variant`` (:data:`o3dheat.spectral.kernel.VARIANTS`) on the site's own spectrum
+    """The heat kernel ``variant`` (:data:`o3dheat.spectral.variants.VARIANTS`) on the site's own spectrum
     of that variant's mass; point clouds with ``operators="robust"`` have robust-laplacian's
     mass only ("weighted").
 

@@ -13,10 +13,10 @@ vertices (:func:`o3dheat.geometry.interpolation.transfer`) and measures how far 
 * ``rel_l2 = ‖d − d_ref‖_A / ‖d_ref‖_A``, with the lumped-mass (area) norm of the reference;
 * ``rel_linf = ‖d − d_ref‖∞ / ‖d_ref‖∞``.
 
-Kernels (the ``kernel`` column): the variants of :data:`o3dheat.spectral.kernel.VARIANTS` (all of them by
+Kernels (the ``kernel`` column): the variants of :data:`o3dheat.spectral.variants.VARIANTS` (all of them by
 default), each the heat kernel of its own eigenproblem ``L x = λ W x``, ``K_t = X D_t Xᵀ W``.
 Descriptors (:data:`DESCRIPTORS`): "hks_<form>" for each HKS form of
-:data:`o3dheat.spectral.kernel.HKS_FORMS` ("hks_density", "hks_paper"), "smooth_height" (``Φ_t`` of the
+:data:`o3dheat.spectral.variants.HKS_FORMS` ("hks_density", "hks_paper"), "smooth_height" (``Φ_t`` of the
 height along the reference's longest axis), "smooth_curvature" (``Φ_t`` of the FEM mean
 curvature), "eigenvalues" (λ_2..λ_k of the kernel's own eigenproblem, one row with scale 0),
 "critical_points" (the number of critical points of the smoothed height; both metrics are
@@ -184,7 +184,7 @@ def robustness_study(meshes: dict[str, MeshLike], resamplings: dict | list | str
         ``remesh(edge_factor=1)``); kinds of :data:`o3dheat.geometry.sampling.KINDS`. Names must stay
         distinct once made file names.
     kernels : str or sequence of str, optional
-        Keys of :data:`o3dheat.spectral.kernel.VARIANTS`; default: all of them.
+        Keys of :data:`o3dheat.spectral.variants.VARIANTS`; default: all of them.
     descriptors : sequence of str
         From :data:`DESCRIPTORS`.
     scales : int
@@ -202,7 +202,7 @@ def robustness_study(meshes: dict[str, MeshLike], resamplings: dict | list | str
     progress : bool, optional
         A progress bar (default: when stderr is a terminal).
     grid : str
-        The scale grid, one of :data:`o3dheat.spectral.kernel.GRIDS` (:meth:`o3dheat.HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>`), on
+        The scale grid, one of :data:`o3dheat.spectral.variants.GRIDS` (:meth:`o3dheat.HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>`), on
         each kernel's reference spectrum.
     method : str
         How the smoothed descriptors ("smooth_height", "smooth_curvature", "critical_points") are
@@ -280,7 +280,7 @@ def _settings(meshes, resamplings, kernels, descriptors, scales, k, progress, gr
     bad = [x for x in kernels if x not in kernel.VARIANTS] + [x for x in descriptors if x not in DESCRIPTORS]
     if bad:
         raise MeshError(f"unknown kernels/descriptors {bad}: kernels are {', '.join(kernel.VARIANTS)} "
-                        f"(o3dheat.spectral.kernel.VARIANTS), descriptors {', '.join(DESCRIPTORS)}")
+                        f"(o3dheat.spectral.variants.VARIANTS), descriptors {', '.join(DESCRIPTORS)}")
     if not kernels or not descriptors:
         raise MeshError("give at least one kernel and one descriptor")
     if not isinstance(meshes, dict) or not meshes:
@@ -388,9 +388,9 @@ def load_config(path: PathLike) -> dict:
 
         k = 100
         scales = 10
-        grid = "paper"                   # one of o3dheat.spectral.kernel.GRIDS
+        grid = "paper"                   # one of o3dheat.spectral.variants.GRIDS
         method = "spectral"              # or "exact": the full kernel for the smoothed descriptors
-        kernels = ["weighted"]                           # of o3dheat.spectral.kernel.VARIANTS (default: all)
+        kernels = ["weighted"]                           # of o3dheat.spectral.variants.VARIANTS (default: all)
         descriptors = ["hks_density", "smooth_height"]   # of DESCRIPTORS (default: all)
         [meshes]
         bunny = "builtin:bunny@20000"    # bunny, airplane, bone, torus (@ decimates); or a file path

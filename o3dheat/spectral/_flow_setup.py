@@ -285,7 +285,7 @@ def finish(U, F, units, order, zero, in_order):
 def check_transfer(phi, lam_max, unit):
     """Refuse a transfer function whose full kernel does not exist: φ decreasing without bound
     at high frequencies (exp(−(t/2) φ) would amplify them more, the finer the mesh). ``phi``: from
-    :func:`o3dheat.spectral.kernel.transfer_function <o3dheat.spectral.variants.transfer_function>`; ``lam_max``: a bound of the operator's largest
+    :func:`o3dheat.spectral.variants.transfer_function <o3dheat.spectral.variants.transfer_function>`; ``lam_max``: a bound of the operator's largest
     eigenvalue (None: none known); ``unit``: the operator's factor (1, or 1/λ_2)."""
     coef = phi.coefficients
     if coef is not None:

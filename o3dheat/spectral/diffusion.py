@@ -98,7 +98,7 @@ def diffuse(mesh: MeshLike, f: FieldLike, dt: float, steps: int, scheme: str = "
     mass : str
         ``B``, a key of :data:`o3dheat.spectral.fem.MASS_KINDS`: "consistent" is the paper's; the steps
         converge to the heat kernel of the variant with this mass
-        (:data:`o3dheat.spectral.kernel.VARIANTS`, e.g. "identity": the paper's "B := I" kernel).
+        (:data:`o3dheat.spectral.variants.VARIANTS`, e.g. "identity": the paper's "B := I" kernel).
     backend : str
         Factorization backend (:func:`o3dheat.spectral.linalg.factorize`).
     return_history : bool

@@ -37,7 +37,7 @@ __all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "operators", "adj
 
 #: mass kind -> what the matrix is: the one definition of the masses of ``L x = λ B x``, used by
 #: :func:`o3dheat.eigensolve <o3dheat.spectral.spectrum.eigensolve>`, :func:`o3dheat.diffuse <o3dheat.spectral.diffusion.diffuse>`, the kernel variants
-#: (:data:`o3dheat.spectral.kernel.VARIANTS` names a mass of this table) and the command (``--mass``)
+#: (:data:`o3dheat.spectral.variants.VARIANTS` names a mass of this table) and the command (``--mass``)
 MASS_KINDS = {
     "consistent": "the paper's consistent FEM mass B, B_rs = (|t_r| + |t_s|)/12, B_ii = Σ|t|/6",
     "lumped": "diag(B 1), the row sums of B: a third of the area of the triangles at each vertex",

@@ -11,7 +11,7 @@ Why: the spectral kernel ``X_k D_t X_kᵀ W f`` of :class:`o3dheat.HeatKernel <o
 the ``k`` smallest eigenpairs. At the paper's scales ``t_i = (i/10)/λ_k`` the dropped eigenpairs
 would keep ``exp(−λ_k t_1 / 2) = 95%`` of their weight in the full kernel, so there the truncation,
 not ``t``, does the smoothing. The full kernel ``K_t = exp(−(t/2) W⁻¹L)`` is the one of eq.
-(5)-(6) without truncation; ``W`` is the variant's mass (:data:`o3dheat.spectral.kernel.VARIANTS`).
+(5)-(6) without truncation; ``W`` is the variant's mass (:data:`o3dheat.spectral.variants.VARIANTS`).
 
 How: shift-and-invert Lanczos on sparse Cholesky factors of ``W + γL``, one per group of times,
 kept with the mesh's operators in the in-memory cache (:func:`o3dheat.spectral.cache.memoized`);
@@ -90,10 +90,10 @@ class HeatFlow:
     mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh or (V, F)
         Repaired as by :func:`o3dheat.geometry.welding.prepare` (welded duplicates, dropped degenerate faces).
     variant : str
-        A key of :data:`o3dheat.spectral.kernel.VARIANTS`: its mass ``W`` (consistent ``B`` for the paper's
+        A key of :data:`o3dheat.spectral.variants.VARIANTS`: its mass ``W`` (consistent ``B`` for the paper's
         "weighted" kernel, ``I`` for "linear", lumped, Voronoi).
     normalize : None or str
-        One of :data:`o3dheat.spectral.kernel.NORMALIZATIONS`; "lambda2" uses ``W⁻¹L / λ_2``, the
+        One of :data:`o3dheat.spectral.variants.NORMALIZATIONS`; "lambda2" uses ``W⁻¹L / λ_2``, the
         scale-invariant kernel (λ_2 from a small eigensolve, once).
     transfer : callable or sequence of float, optional
         A transfer function φ (§2.3), as for :class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>`: ``exp(−(t/2) φ(W⁻¹L))``.

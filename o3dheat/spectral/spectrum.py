@@ -282,7 +282,7 @@ def eigensolve(mesh: MeshLike, k: int = 100, mass: str = "consistent", sigma: fl
     mass : str
         ``B``, a key of :data:`o3dheat.spectral.fem.MASS_KINDS`: the paper's consistent FEM mass, its
         lumped diagonal (row sums), the diagonal of mixed Voronoi areas (eq. (7)), or ``I`` (the
-        paper's "B := I" linear FEM kernel). The kernel variants (:data:`o3dheat.spectral.kernel.VARIANTS`)
+        paper's "B := I" linear FEM kernel). The kernel variants (:data:`o3dheat.spectral.variants.VARIANTS`)
         each name the mass of their eigenproblem.
     sigma : float, optional
         Shift, must be negative (``L - σ B`` is then positive definite). Default: a hundredth of

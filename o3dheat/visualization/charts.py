@@ -208,7 +208,7 @@ def study(table: pd.DataFrame, descriptor: str = "hks_density", metric: str = "r
     ticks on the integer scale indices; when some discrepancies are exactly 0 the axis is
     "symlog" (0 at the bottom, linear up to the decade of the smallest non-zero value) so that
     they stay on the chart. "eigenvalues" (scale 0 only) are bars on a linear axis shared by all
-    panels. Kernels are coloured in the order of :data:`o3dheat.spectral.kernel.VARIANTS` (the paper's
+    panels. Kernels are coloured in the order of :data:`o3dheat.spectral.variants.VARIANTS` (the paper's
     weighted kernel black).
 
     Parameters

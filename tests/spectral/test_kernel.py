@@ -393,7 +393,7 @@ def test_truncation_certificates_hold_against_complete_spectra(variant):
         nf = np.sqrt(np.einsum("ic,ic->c", f, W @ f))[:, None]
         assert np.all(err / nf <= bound * (1 + 1e-9) + 1e-12), (name, (err / nf - bound).max())  # = at t = 0
         assert bound[:, -1].max() < 1e-7  # late: exp(-20)
-        for form in o3dheat.spectral.kernel.HKS_FORMS:
+        for form in o3dheat.spectral.variants.HKS_FORMS:
             h, hb = part.hks(t, form=form, return_bound=True)
             d = full.hks(t, form=form) - h
             slack = 1e-9 * np.abs(full.hks(t, form=form)).max()
