@@ -42,7 +42,7 @@ print("paper grid:", np.round(t_paper[[0, -1]], 6), " log grid:", np.round(t_log
 # ``Φ_t f`` on the log grid, with level sets and critical points (red maxima, blue minima,
 # green saddles):
 F = K.smooth(f, t_log)
-fig = o3dheat.visualization.plot.fields(mesh, F, titles=[f"t = {t:.2g}" for t in t_log], ncols=3, up="y",
+fig = o3dheat.plot.fields(mesh, F, titles=[f"t = {t:.2g}" for t in t_log], ncols=3, up="y",
                           label="Φ_t f")
 
 # %%

@@ -27,7 +27,7 @@ print(H.shape, np.round(t, 4))
 # Each scale has its own range of values (heat leaves every vertex as t grows), so each panel is
 # coloured on its own: at small ``t`` the HKS follows the local curvature (ear tips, feet, tail),
 # at large ``t`` it is highest at the ends of the ears, the parts farthest from the rest.
-fig = o3dheat.visualization.plot.fields(mesh, np.log(H), titles=[f"log HKS, t = {s:.2g}" for s in t],
+fig = o3dheat.plot.fields(mesh, np.log(H), titles=[f"log HKS, t = {s:.2g}" for s in t],
                           shared_range=False, level_sets=None, critical_points=False, ncols=2, up="y", label="log HKS")
 
 # %%

@@ -36,7 +36,7 @@ print(cp)                                  # M − s + m = χ = 2 for the (close
 # closed bunny) are on the row ∞.
 d = o3dheat.persistence(mesh, f)
 print(d)
-diagram = o3dheat.visualization.plot.persistence_diagram(d, f, title="persistence pairs")
+diagram = o3dheat.plot.persistence_diagram(d, f, title="persistence pairs")
 
 # %%
 # δ-simplification and the feature-driven approximation
@@ -54,7 +54,7 @@ K = o3dheat.heat_kernel(mesh, k=100)
 t = K.scales(10, grid="log")[3]
 glob_all, _ = o3dheat.feature_driven(K, f, A_all, t)
 glob, loc = o3dheat.feature_driven(K, f, A, t)
-fig = o3dheat.visualization.plot.fields(mesh, np.stack([f, glob_all, glob, loc], axis=1),
+fig = o3dheat.plot.fields(mesh, np.stack([f, glob_all, glob, loc], axis=1),
                           titles=["f", "Φ_t(pr_A f), A = all", "Φ_t(pr_A f), A = simplified",
                                   "local component f − Φ_t(pr_A f)"],
                           shared_range=False, ncols=2, up="y")

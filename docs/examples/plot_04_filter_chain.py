@@ -17,11 +17,11 @@ from o3dheat.io import default_mesh
 
 bunny, _ = default_mesh()
 mesh = decimate(bunny, reduction=0.8).mesh
-print(o3dheat.pipelines.filters.names())
-print(o3dheat.pipelines.filters.describe("heat_smooth")["parameters"][0])
+print(o3dheat.filters.names())
+print(o3dheat.filters.describe("heat_smooth")["parameters"][0])
 
 # %%
-chain = o3dheat.pipelines.filters.Chain([
+chain = o3dheat.filters.Chain([
     ("scalar", {"kind": "mean_curvature"}),
     ("heat_smooth", {"attribute": "mean_curvature", "k": 80, "scales": 6, "grid": "log"}),
     ("critical_points", {"attribute": "mean_curvature_smooth", "column": 2, "delta": 0.05}),
@@ -35,7 +35,7 @@ print("smoothed curvature:", tuple(out.vertex["mean_curvature_smooth"].shape))
 # The input is unchanged; the output keeps everything and adds the results. The smoothed mean
 # curvature at three of the six scales:
 F = out.vertex["mean_curvature_smooth"].numpy()
-fig = o3dheat.visualization.plot.fields(out, F[:, [0, 2, 4]], titles=["scale 0", "scale 2", "scale 4"],
+fig = o3dheat.plot.fields(out, F[:, [0, 2, 4]], titles=["scale 0", "scale 2", "scale 4"],
                           shared_range=False, critical_points=False, up="y", label="mean curvature, smoothed")
 
 # %%
@@ -43,5 +43,5 @@ fig = o3dheat.visualization.plot.fields(out, F[:, [0, 2, 4]], titles=["scale 0",
 path = os.path.join(tempfile.mkdtemp(), "chain.toml")
 chain.save(path)
 print(open(path).read())
-same = o3dheat.pipelines.filters.Chain.load(path)(mesh)
+same = o3dheat.filters.Chain.load(path)(mesh)
 print("replayed identically:", (same.vertex["mean_curvature_smooth"].numpy() == F).all())

@@ -31,7 +31,7 @@ f = V[:, 1] + 0.05 * np.ptp(V[:, 1]) * np.random.default_rng(2).standard_normal(
 # of its own spectrum (the linear kernel's times are not comparable to the others').
 kernels = {v: o3dheat.heat_kernel(mesh, k=80, variant=v) for v in o3dheat.VARIANTS}
 smoothed = {v: K.smooth(f, K.scales(10, grid="log")[1]) for v, K in kernels.items()}
-fig = o3dheat.visualization.plot.fields(mesh, np.stack(list(smoothed.values()), axis=1), titles=list(smoothed),
+fig = o3dheat.plot.fields(mesh, np.stack(list(smoothed.values()), axis=1), titles=list(smoothed),
                           ncols=2, up="y", label="Φ_t f")
 
 # %%
@@ -41,7 +41,7 @@ fig = o3dheat.visualization.plot.fields(mesh, np.stack(list(smoothed.values()), 
 t_end = 4e-4
 explicit = o3dheat.diffuse(mesh, f, dt=t_end / 500, steps=500, scheme="explicit")
 implicit = o3dheat.diffuse(mesh, f, dt=t_end / 10, steps=10, scheme="implicit")
-stepped = o3dheat.visualization.plot.fields(mesh, np.stack([explicit, implicit], axis=1),
+stepped = o3dheat.plot.fields(mesh, np.stack([explicit, implicit], axis=1),
                               titles=["eq. (8): 500 explicit steps", "10 implicit steps"], up="y", label="F(t)")
 
 # %%
