@@ -23,7 +23,7 @@ from o3dheat.pipelines.site import (
     smoother,
     tolerance,
 )
-from o3dheat.spectral.kernel import mass_of
+from o3dheat.spectral.variants import mass_of
 from o3dheat.topology import feature_driven, simplify_critical_points, track_critical_points
 
 

@@ -24,7 +24,7 @@ from o3dheat.pipelines.site import (
     times_of,
     tolerance,
 )
-from o3dheat.spectral.kernel import mass_of
+from o3dheat.spectral.variants import mass_of
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from o3dheat.pipelines.site import (
     time_list,
     times_of,
 )
-from o3dheat.spectral.kernel import HKS_DEFAULT, mass_of
+from o3dheat.spectral.variants import HKS_DEFAULT, mass_of
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from o3dheat.pipelines.site import (
     time_list,
     tolerance,
 )
-from o3dheat.spectral.kernel import mass_of
+from o3dheat.spectral.variants import mass_of
 
 #: the codes of ``<attribute>_track_kind``, as ``critical_points``' labels (0 is regular)
 KIND_CODES = {"minimum": topology.MINIMUM, "saddle": topology.SADDLE, "maximum": topology.MAXIMUM}

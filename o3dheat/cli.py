@@ -21,7 +21,7 @@ from o3dheat.errors import MeshError, SolverError
 from o3dheat.pipelines import batch, study
 from o3dheat.pipelines import filters as flt
 from o3dheat.pipelines._dask_logs import DaskLogs
-from o3dheat.spectral import fem, heatflow, kernel, spectrum
+from o3dheat.spectral import fem, heatflow, spectrum, variants
 from o3dheat.visualization import figures
 
 __all__ = ["main"]
@@ -102,8 +102,8 @@ def _epilog(name):
     """The examples of a command, with the lists defined elsewhere filled in (read now)."""
     import json
 
-    return (EXAMPLES[name].replace("<VARIANTS>", json.dumps(list(kernel.VARIANTS), ensure_ascii=False))
-            .replace("<GRIDS>", "one of " + ", ".join(map(json.dumps, kernel.GRIDS)))
+    return (EXAMPLES[name].replace("<VARIANTS>", json.dumps(list(variants.VARIANTS), ensure_ascii=False))
+            .replace("<GRIDS>", "one of " + ", ".join(map(json.dumps, variants.GRIDS)))
             .replace("<METHODS>", "one of " + ", ".join(map(json.dumps, heatflow.METHODS))))
 
 

@@ -12,7 +12,7 @@ import pytest
 import o3dheat
 import o3dheat.pipelines.filters as flt
 from o3dheat.cli import main
-from o3dheat.spectral import fem, kernel
+from o3dheat.spectral import fem, variants
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -25,22 +25,22 @@ def sphere():
 @pytest.fixture
 def twin(monkeypatch):
     """A variant registered in o3dheat.spectral.variants.VARIANTS only: a copy of "weighted" under a new name."""
-    monkeypatch.setitem(kernel.VARIANTS, "twin", ("consistent", "the weighted kernel again, for a test"))
+    monkeypatch.setitem(variants.VARIANTS, "twin", ("consistent", "the weighted kernel again, for a test"))
     return "twin"
 
 
-@pytest.mark.parametrize("variant", list(kernel.VARIANTS))
+@pytest.mark.parametrize("variant", list(variants.VARIANTS))
 def test_hks_filter_reaches_every_variant(sphere, variant):
     out = flt.apply(sphere, "hks", variant=variant, k=20, scales=3)
     K = o3dheat.heat_kernel(sphere, k=20, variant=variant)
-    assert K.spectrum.mass_kind == kernel.VARIANTS[variant][0]
+    assert K.spectrum.mass_kind == variants.VARIANTS[variant][0]
     np.testing.assert_allclose(out.vertex["hks"].numpy(), K.hks(K.scales(3)), rtol=1e-10, atol=1e-14)
 
 
 def test_every_variant_names_a_mass_kind():
-    assert {mass for mass, _ in kernel.VARIANTS.values()} <= set(fem.MASS_KINDS)
-    for variant in kernel.VARIANTS:
-        assert kernel.variant_of_mass(kernel.mass_of(variant)) == variant  # the first of its mass
+    assert {mass for mass, _ in variants.VARIANTS.values()} <= set(fem.MASS_KINDS)
+    for variant in variants.VARIANTS:
+        assert variants.variant_of_mass(variants.mass_of(variant)) == variant  # the first of its mass
 
 
 def test_a_new_variant_reaches_the_kernel_and_the_filters(sphere, twin):
@@ -68,7 +68,7 @@ def test_a_new_variant_reaches_the_study(twin):
 
     small = dict(descriptors=["smooth_height"], scheduler="sequential", progress=False, k=8, scales=2)
     t = o3dheat.robustness_study({"s": icosphere(1)}, ["jitter"], **small)  # default: every variant
-    assert set(t["kernel"]) == set(kernel.VARIANTS) and (t["error"] == "").all()
+    assert set(t["kernel"]) == set(variants.VARIANTS) and (t["error"] == "").all()
     rows = t.set_index(["kernel", "scale"])["rel_l2"]
     np.testing.assert_allclose(rows["twin"], rows["weighted"], rtol=1e-12)
     with pytest.raises(o3dheat.MeshError, match="twin"):
@@ -94,7 +94,7 @@ def test_a_new_variant_reaches_the_command(tmp_path, capsys, twin):
     # the help lists it
     with pytest.raises(SystemExit):
         main(["study", "--help"])
-    assert json.dumps(list(kernel.VARIANTS)) in capsys.readouterr().out
+    assert json.dumps(list(variants.VARIANTS)) in capsys.readouterr().out
 
 
 def test_mass_kinds_are_fems(sphere, capsys):
@@ -118,14 +118,14 @@ def test_mass_kinds_are_fems(sphere, capsys):
 def test_other_lists_have_one_home():
     from o3dheat.pipelines.study import DESCRIPTORS
 
-    assert [d for d in DESCRIPTORS if d.startswith("hks_")] == [f"hks_{f}" for f in kernel.HKS_FORMS]
+    assert [d for d in DESCRIPTORS if d.startswith("hks_")] == [f"hks_{f}" for f in variants.HKS_FORMS]
     types = {p.name: p.type for p in flt.describe("hks")["parameters"]}
-    assert types["grid"] == f"Literal{list(kernel.GRIDS)}"
-    assert types["form"] == f"Literal{list(kernel.HKS_FORMS)}"
-    assert types["normalize"] == f"Literal{list(kernel.NORMALIZATIONS)}"
+    assert types["grid"] == f"Literal{list(variants.GRIDS)}"
+    assert types["form"] == f"Literal{list(variants.HKS_FORMS)}"
+    assert types["normalize"] == f"Literal{list(variants.NORMALIZATIONS)}"
     K = o3dheat.heat_kernel(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6), k=5)
-    for bad, message in ((lambda: K.scales(3, grid="linear"), ", ".join(kernel.GRIDS)),
-                         (lambda: K.hks(1.0, form="diagonal"), ", ".join(kernel.HKS_FORMS)),
+    for bad, message in ((lambda: K.scales(3, grid="linear"), ", ".join(variants.GRIDS)),
+                         (lambda: K.hks(1.0, form="diagonal"), ", ".join(variants.HKS_FORMS)),
                          (lambda: o3dheat.HeatKernel(K.spectrum, normalize="max"), "'lambda2'")):
         with pytest.raises(o3dheat.MeshError, match=message):
             bad()
@@ -140,7 +140,7 @@ CONSUMERS = sorted(str(p.relative_to(ROOT)) for p in [*(ROOT / "o3dheat").rglob(
 @pytest.mark.parametrize("path", CONSUMERS)
 def test_consumers_do_not_repeat_the_lists(path):
     text = (ROOT / path).read_text()
-    for names in (list(kernel.VARIANTS), list(fem.MASS_KINDS), list(kernel.GRIDS), list(kernel.HKS_FORMS)):
+    for names in (list(variants.VARIANTS), list(fem.MASS_KINDS), list(variants.GRIDS), list(variants.HKS_FORMS)):
         # two or more names of one list, quoted, side by side: a copy of the list
         pairs = [rf'"{a}",\s*"{b}"' for a in names for b in names if a != b]
         found = [m.group(0) for p in pairs for m in re.finditer(p, text)]

@@ -16,13 +16,13 @@ from threadpoolctl import threadpool_limits
 
 from o3dheat.geometry import resample, transfer
 from o3dheat.parallel import threads
-from o3dheat.spectral import HeatFlow, fem, heat_kernel, kernel, mass_matrix
+from o3dheat.spectral import HeatFlow, fem, heat_kernel, mass_matrix, variants
 from o3dheat.topology import Surface, critical_points, track_critical_points
 
 log = logging.getLogger("o3dheat")
 
 #: what a study measures: one HKS per form of :data:`o3dheat.spectral.variants.HKS_FORMS`, then the others
-DESCRIPTORS = tuple(f"hks_{form}" for form in kernel.HKS_FORMS) + (
+DESCRIPTORS = tuple(f"hks_{form}" for form in variants.HKS_FORMS) + (
     "smooth_height", "smooth_curvature", "eigenvalues", "critical_points", "track_lifetime")
 COLUMNS = ["mesh", "resampling", "kind", "kernel", "descriptor", "scale", "t", "rel_l2", "rel_linf",
            "vertices", "error"]

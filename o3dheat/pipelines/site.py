@@ -26,7 +26,7 @@ import numpy as np
 from o3dheat.errors import MeshError
 from o3dheat.geometry import as_arrays, interpolation
 from o3dheat.geometry import mesh as meshes
-from o3dheat.spectral import HeatFlow, HeatKernel, Spectrum, heatflow, kernel
+from o3dheat.spectral import HeatFlow, HeatKernel, Spectrum, heatflow, variants
 from o3dheat.typing import MeshLike
 
 from . import _clouds as clouds
@@ -57,10 +57,10 @@ OPERATORS = ("reconstruct", "robust")
 #: parameter types shared by the filters, from the kernel module's single definitions; the variants
 #: are read when a value is checked, so that a variant added to o3dheat.spectral.variants.VARIANTS (even at
 #: run time) is accepted by every filter at once
-Variant = Annotated[str, OneOf(lambda: kernel.VARIANTS)]
-Grid = Literal[kernel.GRIDS]
-HksForm = Literal[kernel.HKS_FORMS]
-Normalization = Literal[kernel.NORMALIZATIONS]
+Variant = Annotated[str, OneOf(lambda: variants.VARIANTS)]
+Grid = Literal[variants.GRIDS]
+HksForm = Literal[variants.HKS_FORMS]
+Normalization = Literal[variants.NORMALIZATIONS]
 Operators = Literal[OPERATORS]
 Method = Literal[heatflow.METHODS]
 
@@ -423,7 +423,7 @@ def kernel_of(site: Site, k: int, variant: str = "weighted", normalize: str | No
     if not site.is_mesh and site.operators == "robust" and variant != "weighted":
         raise MeshError(f"operators='robust' comes with robust-laplacian's own mass: use variant='weighted', "
                         f"or operators='reconstruct' for the {variant!r} kernel")
-    mass = kernel.mass_of(variant)  # an unknown variant: MeshError listing them
+    mass = variants.mass_of(variant)  # an unknown variant: MeshError listing them
     return HeatKernel(site.spectrum(k=k, mass=mass), variant=variant, normalize=normalize)
 
 
@@ -440,7 +440,7 @@ def flow_of(site: Site, variant: str = "weighted", normalize: str | None = None,
     >>> flow.variant, flow.n
     ('lumped', 114)
     """
-    kernel.mass_of(variant)  # an unknown variant: MeshError listing them
+    variants.mass_of(variant)  # an unknown variant: MeshError listing them
     if not site.is_mesh and site.operators == "robust":
         if variant != "weighted":
             raise MeshError(f"operators='robust' comes with robust-laplacian's own mass: use variant='weighted', "

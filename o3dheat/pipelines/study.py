@@ -62,7 +62,7 @@ import numpy as np
 from o3dheat.errors import MeshError
 from o3dheat.geometry import KINDS, decimate, prepare
 from o3dheat.io import atomic_write, atomic_write_text, read_mesh, read_toml, sample_mesh
-from o3dheat.spectral import heatflow, kernel
+from o3dheat.spectral import heatflow, variants
 from o3dheat.typing import MeshLike, PathLike
 
 from ._descriptors import COLUMNS, DESCRIPTORS, failed, reference, task
@@ -274,12 +274,12 @@ def _settings(meshes, resamplings, kernels, descriptors, scales, k, progress, gr
     """(the study's configuration, its resamplings as [(name, spec)]) after every check of
     :func:`robustness_study`'s arguments, in its order."""
     if kernels is None:
-        kernels = list(kernel.VARIANTS)  # read now: a variant defined there is studied too
+        kernels = list(variants.VARIANTS)  # read now: a variant defined there is studied too
     kernels = [kernels] if isinstance(kernels, str) else list(kernels)  # one name is a list of one
     descriptors = [descriptors] if isinstance(descriptors, str) else list(descriptors)
-    bad = [x for x in kernels if x not in kernel.VARIANTS] + [x for x in descriptors if x not in DESCRIPTORS]
+    bad = [x for x in kernels if x not in variants.VARIANTS] + [x for x in descriptors if x not in DESCRIPTORS]
     if bad:
-        raise MeshError(f"unknown kernels/descriptors {bad}: kernels are {', '.join(kernel.VARIANTS)} "
+        raise MeshError(f"unknown kernels/descriptors {bad}: kernels are {', '.join(variants.VARIANTS)} "
                         f"(o3dheat.spectral.variants.VARIANTS), descriptors {', '.join(DESCRIPTORS)}")
     if not kernels or not descriptors:
         raise MeshError("give at least one kernel and one descriptor")
@@ -292,8 +292,8 @@ def _settings(meshes, resamplings, kernels, descriptors, scales, k, progress, gr
             raise MeshError(f"{name} must be an integer >= {least}, got {value!r} (scales must be >= 1 and k >= 2)")
     if progress is not None and not isinstance(progress, (bool, np.bool_)):
         raise MeshError(f"progress must be True, False or None, got {progress!r}")
-    if not isinstance(grid, str) or grid not in kernel.GRIDS:
-        raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(kernel.GRIDS)}")
+    if not isinstance(grid, str) or grid not in variants.GRIDS:
+        raise MeshError(f"unknown scale grid {grid!r}: use one of {', '.join(variants.GRIDS)}")
     if not isinstance(method, str) or method not in heatflow.METHODS:
         raise MeshError(f"unknown method {method!r}: use one of {', '.join(heatflow.METHODS)}")
     cfg = {"kernels": kernels, "descriptors": descriptors, "scales": int(scales), "k": int(k), "grid": grid}

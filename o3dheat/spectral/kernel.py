@@ -3,8 +3,9 @@
 Entry points: :func:`heat_kernel` (a mesh's kernel), :class:`HeatKernel` (on a
 :class:`~o3dheat.spectral.spectrum.Spectrum`: the feature map Φ_t, heat kernel signatures, the paper's scales,
 approximation errors, the canonic basis, the inverse, truncation bounds). The variants and the
-other lists (:data:`VARIANTS`, :data:`GRIDS`, :data:`HKS_FORMS`, :data:`NORMALIZATIONS`) are
-defined once in :mod:`o3dheat.spectral.variants` and reached here.
+other lists (:data:`~o3dheat.spectral.variants.VARIANTS`, :data:`~o3dheat.spectral.variants.GRIDS`,
+:data:`~o3dheat.spectral.variants.HKS_FORMS`, :data:`~o3dheat.spectral.variants.NORMALIZATIONS`) are
+defined once in :mod:`o3dheat.spectral.variants`.
 
 Notes
 -----
@@ -31,34 +32,15 @@ from o3dheat.typing import FieldLike, MeshLike, TimesLike
 
 from . import _truncation, spectrum
 from .spectrum import Spectrum, all_zero
-
-# the lists and the variants' masses, defined in .variants; kernel.VARIANTS and the others stay reachable here
 from .variants import (
-    GRIDS as GRIDS,
-)
-from .variants import (
-    HKS_DEFAULT as HKS_DEFAULT,
-)
-from .variants import (
-    HKS_FORMS as HKS_FORMS,
-)
-from .variants import (
-    NORMALIZATIONS as NORMALIZATIONS,
-)
-from .variants import (
-    VARIANTS as VARIANTS,
-)
-from .variants import (
-    first_nonzero as first_nonzero,
-)
-from .variants import (
-    mass_of as mass_of,
-)
-from .variants import (
-    transfer_function as transfer_function,
-)
-from .variants import (
-    variant_of_mass as variant_of_mass,
+    GRIDS,
+    HKS_DEFAULT,
+    HKS_FORMS,
+    NORMALIZATIONS,
+    first_nonzero,
+    mass_of,
+    transfer_function,
+    variant_of_mass,
 )
 
 __all__ = ["HeatKernel", "heat_kernel"]
@@ -76,7 +58,7 @@ def heat_kernel(mesh: MeshLike, k: int = 100, variant: str = "weighted", normali
     k : int
         Eigenpairs.
     variant : str
-        A key of :data:`VARIANTS`.
+        A key of :data:`~o3dheat.spectral.variants.VARIANTS`.
     normalize, transfer
         As for :class:`HeatKernel`.
     **eigensolve_options
@@ -111,7 +93,7 @@ class HeatKernel:
     spectrum : Spectrum
         From :func:`o3dheat.eigensolve <o3dheat.spectral.spectrum.eigensolve>`.
     variant : None or str
-        The kernel, a key of :data:`VARIANTS`, whose mass must be the spectrum's: None takes the
+        The kernel, a key of :data:`~o3dheat.spectral.variants.VARIANTS`, whose mass must be the spectrum's: None takes the
         (first) variant of ``spectrum.mass_kind``; a variant whose mass differs is refused
         (compute the spectrum with ``eigensolve(mesh, k, mass=mass_of(variant))``, or use
         :func:`heat_kernel`). A spectrum of :func:`o3dheat.spectral.spectrum.eigensolve_operators` (mass

@@ -2,7 +2,7 @@
 
 Entry points: :data:`VARIANTS`, :data:`GRIDS`, :data:`HKS_FORMS`, :data:`HKS_DEFAULT`,
 :data:`NORMALIZATIONS`, :func:`mass_of`, :func:`variant_of_mass`, :func:`first_nonzero`,
-:func:`transfer_function`; also reachable as :mod:`o3dheat.spectral.kernel`'s (a variant added to :data:`VARIANTS` here
+:func:`transfer_function`. Every consumer reads them here (a variant added to :data:`VARIANTS` here
 reaches the kernels, the filters, the command and the studies: this file is the only one to edit).
 
 Notes
@@ -68,7 +68,7 @@ def first_nonzero(eigenvalues: ArrayLike) -> float:
 
     Examples
     --------
-    >>> from o3dheat.spectral.kernel import first_nonzero
+    >>> from o3dheat.spectral.variants import first_nonzero
     >>> first_nonzero([1e-15, 2.0, 6.0])
     2.0
     """
@@ -97,7 +97,7 @@ def transfer_function(transfer: Callable | Sequence[float] | None) -> Callable |
 
     Examples
     --------
-    >>> from o3dheat.spectral.kernel import transfer_function
+    >>> from o3dheat.spectral.variants import transfer_function
     >>> transfer_function([0.0, 1.0, 0.5])([0.0, 2.0]).tolist()      # λ + λ²/2
     [0.0, 4.0]
     """
@@ -156,7 +156,7 @@ def mass_of(variant: str) -> str:
 
     Examples
     --------
-    >>> from o3dheat.spectral.kernel import mass_of
+    >>> from o3dheat.spectral.variants import mass_of
     >>> mass_of("weighted"), mass_of("linear")
     ('consistent', 'identity')
     """
@@ -171,7 +171,7 @@ def variant_of_mass(mass_kind: str) -> str:
 
     Examples
     --------
-    >>> from o3dheat.spectral.kernel import variant_of_mass
+    >>> from o3dheat.spectral.variants import variant_of_mass
     >>> variant_of_mass("voronoi"), variant_of_mass("given")
     ('voronoi', 'given')
     """

@@ -10,7 +10,7 @@ import o3dheat
 from o3dheat.errors import ConvergenceError, MeshError
 from o3dheat.spectral import fem
 from o3dheat.spectral.heatflow import HeatFlow, heat_flow, shift
-from o3dheat.spectral.kernel import VARIANTS, mass_of
+from o3dheat.spectral.variants import VARIANTS, mass_of
 
 TOL = 1e-8
 
