@@ -121,3 +121,25 @@ def irregular_mesh():
 @pytest.fixture(scope="session")
 def torus_mesh():
     return torus()
+
+
+# --- Open3D meshes with attributes, for the filters' tests ---
+
+def tmesh(V, F, **attrs):
+    m = o3d.t.geometry.TriangleMesh()
+    m.vertex.positions = o3d.core.Tensor(np.asarray(V, np.float64))
+    m.triangle.indices = o3d.core.Tensor(np.asarray(F, np.int64))
+    for k, v in attrs.items():
+        m.vertex[k] = o3d.core.Tensor(np.ascontiguousarray(v))
+    return m
+
+
+def sphere_points(n=4000, seed=0):
+    P = np.random.default_rng(seed).standard_normal((n, 3))
+    return P / np.linalg.norm(P, axis=1)[:, None]
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    V, F = icosphere(3)
+    return tmesh(V, F, height=V[:, 2].copy())

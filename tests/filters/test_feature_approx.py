@@ -1,27 +1,10 @@
 """The feature_approx filter (and critical_points), against the topology functions."""
 
 import numpy as np
-import open3d as o3d
-import pytest
-from conftest import icosphere
+from conftest import tmesh
 
 import o3dheat
 import o3dheat.pipelines.filters as flt
-
-
-def tmesh(V, F, **attrs):
-    m = o3d.t.geometry.TriangleMesh()
-    m.vertex.positions = o3d.core.Tensor(np.asarray(V, np.float64))
-    m.triangle.indices = o3d.core.Tensor(np.asarray(F, np.int64))
-    for k, v in attrs.items():
-        m.vertex[k] = o3d.core.Tensor(np.ascontiguousarray(v))
-    return m
-
-
-@pytest.fixture(scope="module")
-def sphere():
-    V, F = icosphere(3)
-    return tmesh(V, F, height=V[:, 2].copy())
 
 
 def test_topology_filters(sphere):

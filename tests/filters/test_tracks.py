@@ -3,19 +3,11 @@
 import numpy as np
 import open3d as o3d
 import pytest
+from conftest import tmesh
 
 import o3dheat
 import o3dheat.pipelines.filters as flt
 from o3dheat.errors import MeshError
-
-
-def tmesh(V, F, **attrs):
-    m = o3d.t.geometry.TriangleMesh()
-    m.vertex.positions = o3d.core.Tensor(np.asarray(V, np.float64))
-    m.triangle.indices = o3d.core.Tensor(np.asarray(F, np.int64))
-    for k, v in attrs.items():
-        m.vertex[k] = o3d.core.Tensor(np.ascontiguousarray(v))
-    return m
 
 
 # ------------------------------------------------------------------------- tracks (issue 24)

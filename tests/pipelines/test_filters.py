@@ -8,32 +8,12 @@ import textwrap
 import numpy as np
 import open3d as o3d
 import pytest
-from conftest import icosphere
+from conftest import icosphere, tmesh
 
 import o3dheat
 import o3dheat.pipelines.filters as flt
 
 BUILTIN = ["colorize", "critical_points", "feature_approx", "heat_smooth", "hks", "scalar"]
-
-
-def tmesh(V, F, **attrs):
-    m = o3d.t.geometry.TriangleMesh()
-    m.vertex.positions = o3d.core.Tensor(np.asarray(V, np.float64))
-    m.triangle.indices = o3d.core.Tensor(np.asarray(F, np.int64))
-    for k, v in attrs.items():
-        m.vertex[k] = o3d.core.Tensor(np.ascontiguousarray(v))
-    return m
-
-
-@pytest.fixture(scope="module")
-def sphere():
-    V, F = icosphere(3)
-    return tmesh(V, F, height=V[:, 2].copy())
-
-
-def sphere_points(n=4000, seed=0):
-    P = np.random.default_rng(seed).standard_normal((n, 3))
-    return P / np.linalg.norm(P, axis=1)[:, None]
 
 
 # ---------------------------------------------------------------------------------- registry

@@ -7,22 +7,17 @@ import threading
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import irregular
+from linalg_cases import needs_cholmod, spd_matrix
 
 import o3dheat.spectral._cholmod as ch
 import o3dheat.spectral.linalg as la
 from o3dheat import parallel
 from o3dheat.errors import SolverError
-from o3dheat.spectral import fem
-
-needs_cholmod = pytest.mark.skipif("cholmod" not in la.available_backends(), reason="scikit-sparse not installed")
 
 
 @pytest.fixture(scope="module")
 def spd():
-    V, F = irregular()
-    L, B = fem.stiffness_matrix(V, F), fem.mass_matrix(V, F)
-    return sp.csc_matrix(L + 0.1 * B)
+    return spd_matrix()
 
 
 @needs_cholmod

@@ -4,7 +4,7 @@
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import irregular
+from linalg_cases import needs_cholmod, spd_matrix
 
 import o3dheat.spectral._cholmod as ch
 import o3dheat.spectral.linalg as la
@@ -12,14 +12,10 @@ import o3dheat.spectral.memory as mm
 from o3dheat.errors import MeshError
 from o3dheat.spectral import fem
 
-needs_cholmod = pytest.mark.skipif("cholmod" not in la.available_backends(), reason="scikit-sparse not installed")
-
 
 @pytest.fixture(scope="module")
 def spd():
-    V, F = irregular()
-    L, B = fem.stiffness_matrix(V, F), fem.mass_matrix(V, F)
-    return sp.csc_matrix(L + 0.1 * B)
+    return spd_matrix()
 
 
 @needs_cholmod
@@ -129,7 +125,6 @@ def test_cholespy_memory_is_estimated_before_it_starts(monkeypatch, binding):
     # a mesh Laplacian: the estimate covers what cholespy was measured to use (38-60 B per n log2 n)
     from conftest import icosphere
 
-    import o3dheat.spectral.fem as fem
 
     V, F = icosphere(4)
     L, B, _ = fem.operators(V, F, "consistent")

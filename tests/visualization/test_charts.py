@@ -4,6 +4,7 @@ diagram above the diagonal, the lifetime chart's log axes (PAPER.md row P16)."""
 import numpy as np
 import pytest
 from conftest import icosphere, torus
+from pictures import torus_tracks
 
 import o3dheat
 import o3dheat.visualization.charts as charts
@@ -96,15 +97,6 @@ def test_persistence_diagram_draws_sublevel_persistence_above_the_diagonal():
     assert ax.get_yticklabels()[-1].get_text() == "∞"
     with pytest.raises(o3dheat.MeshError, match="PersistenceDiagram"):
         charts.persistence_diagram(d.intervals(0))
-
-
-def torus_tracks(t=(0.0, 0.05, 0.1, 0.2, 0.4)):
-    V, F = torus(1.0, 0.4, 40, 20)
-    rng = np.random.default_rng(1)
-    f = V[:, 0] + 0.3 * V[:, 2] + 0.05 * rng.standard_normal(len(V))
-    t = np.asarray(t)
-    Ft = o3dheat.heat_flow((V, F), f, t)
-    return (V, F), Ft, o3dheat.track_critical_points((V, F), Ft, t)
 
 
 def test_lifetime_chart_one_bar_per_track_on_a_log_axis_with_t0():

@@ -3,18 +3,12 @@
 import numpy as np
 import pytest
 from conftest import glued_spheres, grid, icosphere, torus
+from pictures import not_blank
 
 import o3dheat
 import o3dheat.visualization.charts as charts
 import o3dheat.visualization.figures as figures
 import o3dheat.visualization.plot as plot
-
-
-def not_blank(path):
-    from matplotlib.image import imread
-
-    img = imread(path)[..., :3]
-    return img.std() > 0.05 and np.any(img < 0.95, axis=2).mean() > 0.02
 
 
 def test_paper_figures_for_a_mesh(tmp_path):

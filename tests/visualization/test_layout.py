@@ -4,11 +4,10 @@ the figure around the panels (the legend fits) (PAPER.md row P16)."""
 import numpy as np
 import pytest
 from conftest import glued_spheres, icosphere
+from pictures import needs_renderer
 
 import o3dheat
 import o3dheat.visualization.plot as plot
-
-needs_renderer = pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
 
 
 def legend_texts(fig):

@@ -3,21 +3,12 @@ constant to them, markers sized per part, the colour range of the part holding t
 (PAPER.md row P16)."""
 
 import numpy as np
-import pytest
 from conftest import icosphere
+from pictures import needs_renderer, pixels
 
 import o3dheat
 import o3dheat.visualization._panels as _panels
 import o3dheat.visualization.plot as plot
-
-needs_renderer = pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
-
-
-def pixels(img, color):
-    """Pixels close to a pure colour ("red", "blue", "green"): the critical points' markers."""
-    r, g, b = (img[..., i].astype(int) for i in range(3))
-    return int({"red": (r > 120) & (g < 60) & (b < 60), "blue": (b > 120) & (r < 60) & (g < 60),
-                "green": (g > 60) & (r < 40) & (b < 40)}[color].sum())
 
 
 def ink(img):

@@ -4,26 +4,10 @@ the tracks across scales (PAPER.md row P16)."""
 import numpy as np
 import pytest
 from conftest import icosphere, torus
+from pictures import needs_renderer, not_blank, pixels, torus_tracks
 
 import o3dheat
 import o3dheat.visualization.plot as plot
-
-needs_renderer = pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
-
-
-def not_blank(path):
-    from matplotlib.image import imread
-
-    img = imread(path)[..., :3]
-    ink = np.any(img < 0.95, axis=2).mean()  # share of non-white pixels
-    return img.std() > 0.05 and ink > 0.02
-
-
-def pixels(img, color):
-    """Pixels close to a pure colour ("red", "blue", "green"): the critical points' markers."""
-    r, g, b = (img[..., i].astype(int) for i in range(3))
-    return int({"red": (r > 120) & (g < 60) & (b < 60), "blue": (b > 120) & (r < 60) & (g < 60),
-                "green": (g > 60) & (r < 40) & (b < 40)}[color].sum())
 
 
 def legend_texts(fig):
@@ -98,15 +82,6 @@ def test_render_checks_its_range():
     for bad in [(np.nan, 1.0), (1.0, 0.0), "ab", (1.0,)]:
         with pytest.raises(o3dheat.MeshError, match="vrange"):
             plot.render((V, F), V[:, 0], vrange=bad)
-
-
-def torus_tracks(t=(0.0, 0.05, 0.1, 0.2, 0.4)):
-    V, F = torus(1.0, 0.4, 40, 20)
-    rng = np.random.default_rng(1)
-    f = V[:, 0] + 0.3 * V[:, 2] + 0.05 * rng.standard_normal(len(V))
-    t = np.asarray(t)
-    Ft = o3dheat.heat_flow((V, F), f, t)
-    return (V, F), Ft, o3dheat.track_critical_points((V, F), Ft, t)
 
 
 @needs_renderer

@@ -5,31 +5,15 @@ origin the same picture, the fallback to matplotlib and its warning, a blank ren
 import numpy as np
 import pytest
 from conftest import icosphere, torus
+from pictures import needs_renderer, not_blank, pixels
 
 import o3dheat
 import o3dheat.visualization._render as _render
 import o3dheat.visualization.plot as plot
 
-needs_renderer = pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
-
-
-def pixels(img, color):
-    """Pixels close to a pure colour ("red", "blue", "green"): the critical points' markers."""
-    r, g, b = (img[..., i].astype(int) for i in range(3))
-    return int({"red": (r > 120) & (g < 60) & (b < 60), "blue": (b > 120) & (r < 60) & (g < 60),
-                "green": (g > 60) & (r < 40) & (b < 40)}[color].sum())
-
 
 def ink(img):
     return np.any(img < 250, axis=2)
-
-
-def not_blank(path):
-    from matplotlib.image import imread
-
-    img = imread(path)[..., :3]
-    ink = np.any(img < 0.95, axis=2).mean()  # share of non-white pixels
-    return img.std() > 0.05 and ink > 0.02
 
 
 @needs_renderer
