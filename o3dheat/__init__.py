@@ -1,4 +1,5 @@
-"""o3dheat: multi-scale heat-kernel analysis for Open3D meshes.
+"""o3dheat: multi-scale heat-kernel analysis for Open3D meshes: :func:`eigensolve`, :class:`HeatKernel`,
+:func:`heat_flow`, :func:`critical_points`, :func:`track_critical_points`, ``filters.apply``, ``io.read_mesh``.
 
 Implements the weighted linear-FEM heat kernel of Patanè & Falcidieno, "Multi-Scale Feature
 Spaces for Shape Processing and Analysis" (SMI 2010). See the README and the documentation site (scripts/docs.sh) for a tour.

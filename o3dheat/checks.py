@@ -1,4 +1,5 @@
-"""Argument checks shared by every module: what users pass as fields and counts.
+"""Argument checks shared by every module: :func:`field`, :func:`values`, :func:`count`,
+:func:`times`, :func:`tolerance`, :func:`vertex_set` (what users pass as fields, counts, times).
 
 Fields may come as numpy arrays, Python lists or Open3D tensors (``mesh.vertex["f"]``, or any
 object with a ``numpy()`` method); :func:`values` turns them into numpy arrays before the

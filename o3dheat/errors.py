@@ -1,4 +1,5 @@
-"""The o3dheat exception family.
+"""The o3dheat exception family: :class:`MeshError` (bad input; :class:`NoSuchFile`), :class:`SolverError`
+(a computation failed; :class:`ConvergenceError`).
 
 Every error raised on purpose by o3dheat is a :class:`MeshError` (a ``ValueError``) or a
 :class:`SolverError` (a ``RuntimeError``; :class:`ConvergenceError` and

@@ -1,4 +1,5 @@
-"""o3dheat's own threads: how many, one shared pool, and row-parallel loops with reproducible sums.
+"""o3dheat's own threads: :func:`threads` and :func:`get_threads` (how many), :func:`run` and
+:func:`background` (one shared pool), :func:`row_parts` (row-parallel loops with reproducible sums).
 
 Why our own threads: the solves on a CHOLMOD factor and the passes over a Lanczos basis are
 memory- or latency-bound loops that numpy/BLAS and CHOLMOD run on one core (or, for BLAS, on

@@ -1,6 +1,7 @@
-"""Dask's log records, one line each: the filter and the context that installs it, shared by the
-cluster (:mod:`o3dheat.pipelines.cluster`, in this process) and the worker plugins (:mod:`o3dheat.pipelines.workers`,
-in the workers), without importing Dask."""
+"""Dask's log records, one line each: :class:`DaskLogs` (the filter), :func:`dask_logs` (the context
+that installs it), :data:`DASK_LOGGERS`; shared by the cluster (:mod:`o3dheat.pipelines.cluster`, in
+this process), the worker plugins (:mod:`o3dheat.pipelines.workers`, in the workers) and the command,
+without importing Dask."""
 
 from __future__ import annotations
 
