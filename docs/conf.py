@@ -92,6 +92,8 @@ def _undocumented_data(app, docname, source):
         documented = ModuleAnalyzer.for_module(modname).find_attr_docs()
     except Exception:  # not a module page
         return
+    if hasattr(module, "__path__"):  # a stage's page lists its modules, not its members
+        return
     names = [n for n in getattr(module, "__all__", ())
              if not (inspect.isroutine(getattr(module, n)) or inspect.isclass(getattr(module, n))
                      or inspect.ismodule(getattr(module, n))) and ("", n) not in documented]

@@ -71,7 +71,7 @@ class Colorize:
         if self.range is not None and not self.range[0] < self.range[1]:
             raise MeshError(f"range must be two increasing numbers, got {self.range}")
 
-    def plan(self, columns):
+    def plan(self, columns: dict[str, int]) -> dict[str, int]:
         """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples

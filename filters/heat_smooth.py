@@ -113,7 +113,7 @@ class HeatSmooth:
                             "(times=T) to smooth every column")
         return count if count > 1 else c
 
-    def plan(self, columns):
+    def plan(self, columns: dict[str, int]) -> dict[str, int]:
         """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples

@@ -75,7 +75,7 @@ class Hks:
         checked(self)
         mass_of(self.variant)  # an unknown variant: MeshError listing o3dheat.spectral.variants.VARIANTS
 
-    def plan(self, columns):
+    def plan(self, columns: dict[str, int]) -> dict[str, int]:
         """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples

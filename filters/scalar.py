@@ -66,7 +66,7 @@ class Scalar:
         if self.kind == "noise" and not self.attribute:
             raise MeshError("kind='noise' needs attribute= (the field to perturb)")
 
-    def plan(self, columns):
+    def plan(self, columns: dict[str, int]) -> dict[str, int]:
         """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples

@@ -126,7 +126,7 @@ class TracksFilter:
         if self.times and np.any(np.diff(self.times) <= 0):
             raise MeshError(f"tracks.times must be strictly increasing, got {self.times!r}")
 
-    def plan(self, columns):
+    def plan(self, columns: dict[str, int]) -> dict[str, int]:
         """What this filter writes, given the input's attributes (see :meth:`o3dheat.pipelines.filters.Chain.check`).
 
         Examples
@@ -138,7 +138,7 @@ class TracksFilter:
         check_column(need_attribute(columns, self.attribute), self.attribute, self.column)
         return {f"{self.attribute}_lifetime": 1, f"{self.attribute}_track_kind": 1}
 
-    def grid(self, site):
+    def grid(self, site: Site) -> np.ndarray:
         """The times tracked on ``site`` (a :class:`~o3dheat.pipelines.site.Site`): ``t = 0`` first,
         then ``times`` or the default log grid (see the class docstring).
 

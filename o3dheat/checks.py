@@ -10,14 +10,21 @@ attempted.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from o3dheat.errors import MeshError
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from o3dheat.typing import FieldLike, TimesLike
+
 __all__ = ["values", "field", "count", "times", "tolerance", "vertex_set"]
 
 
-def values(x):
+def values(x: Any) -> Any:
     """``x`` as something :func:`numpy.asarray` reads: an Open3D tensor (or any object with a
     ``numpy()`` method) becomes its numpy array; anything else is returned as is.
 
@@ -37,7 +44,7 @@ def values(x):
     return x
 
 
-def field(f, n=None, name="f", ndim=(1, 2)):
+def field(f: FieldLike, n: int | None = None, name: str = "f", ndim: int | tuple[int, ...] = (1, 2)) -> np.ndarray:
     """A per-vertex field as a float64 array, checked: numeric (bool included), ``n`` rows (one
     value per vertex, when ``n`` is given), ``ndim`` in the allowed ones, every value finite. The one
     field check of every module, with one message style.
@@ -70,7 +77,7 @@ def field(f, n=None, name="f", ndim=(1, 2)):
     return arr
 
 
-def count(x, name, minimum=1, maximum=1_000_000):
+def count(x: Any, name: str, minimum: int = 1, maximum: int = 1_000_000) -> int:
     """``x`` as an int in ``[minimum, maximum]``, or a :class:`~o3dheat.errors.MeshError` naming ``name``.
 
     Examples
@@ -88,7 +95,7 @@ def count(x, name, minimum=1, maximum=1_000_000):
     return int(x)
 
 
-def times(t):
+def times(t: TimesLike) -> float | np.ndarray:
     """Times as a float64 scalar or a non-empty 1-D array: numbers (not text: ``"0.1"`` is refused,
     not parsed), finite and >= 0 (the backward heat equation is ill-posed).
 
@@ -118,7 +125,7 @@ def times(t):
     return t_arr
 
 
-def tolerance(tol, name="tol"):
+def tolerance(tol: Any, name: str = "tol") -> float:
     """A relative tolerance: a real number in (0, 1).
 
     Examples
@@ -137,7 +144,7 @@ def tolerance(tol, name="tol"):
     return float(tol)
 
 
-def vertex_set(A, n, name="A"):
+def vertex_set(A: ArrayLike, n: int, name: str = "A") -> np.ndarray:
     """A vertex set (indices, repeats allowed, or a boolean mask) as a boolean mask of length n.
 
     Examples

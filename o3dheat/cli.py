@@ -13,6 +13,7 @@ import argparse
 import itertools
 import logging
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import o3dheat
@@ -480,7 +481,7 @@ def _study(args):
 _QUIET_DASK = DaskLogs(logging.WARNING)
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``o3dheat`` command; returns the exit code.
 
     Examples

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -22,14 +24,15 @@ from o3dheat.io import bumpy_torus, default_mesh, write_mesh  # noqa: F401 - bum
 from o3dheat.pipelines import apply
 from o3dheat.spectral import HeatFlow, HeatKernel, eigensolve
 from o3dheat.topology import Surface, critical_points
+from o3dheat.typing import MeshLike, PathLike
 
 __all__ = ["run"]
 
 log = logging.getLogger("o3dheat")
 
 
-def run(out="o3dheat-demo/bunny_heat.ply", k=100, reduction=0.6, noise=0.1, seed=0, mesh=None,
-        echo=print):
+def run(out: PathLike = "o3dheat-demo/bunny_heat.ply", k: int = 100, reduction: float = 0.6, noise: float = 0.1,
+        seed: int = 0, mesh: MeshLike | None = None, echo: Callable[[str], Any] = print) -> dict:
     """Run the demo and write its PLY.
 
     Parameters

@@ -23,7 +23,9 @@ import contextlib
 import logging
 import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any
 
 from o3dheat.errors import MeshError
 
@@ -49,7 +51,7 @@ _POOL = None  # (pid, ThreadPoolExecutor or None, its threads, capped): recreate
 # (threads do not survive a fork)
 
 
-def get_threads():
+def get_threads() -> int:
     """Number of threads o3dheat's parallel loops use.
 
     The value set by :func:`threads` in the calling thread if any, else the environment variable
@@ -95,7 +97,7 @@ def _check(n, what):
 
 
 @contextlib.contextmanager
-def threads(n):
+def threads(n: int) -> Iterator[None]:
     """Run o3dheat's parallel loops on ``n`` threads inside a ``with`` block, for the loops the
     calling thread starts (other threads keep their own setting: a Dask worker thread can ask for
     one thread without affecting its neighbours).
@@ -177,7 +179,7 @@ def _started_pool(m):
     return None, 0
 
 
-def row_parts(n, chunk=None):
+def row_parts(n: int, chunk: int | None = None) -> list[tuple[int, int]]:
     """The half-open row ranges ``(a, z)`` of a row-parallel loop over ``n`` rows (or of any
     ``n`` items, for example the columns of an array).
 
@@ -207,7 +209,7 @@ def row_parts(n, chunk=None):
     return [(a, min(a + chunk, n)) for a in range(0, max(n, 1), chunk)]
 
 
-def run(fn, items, threads=None):
+def run(fn: Callable[[Any], Any], items: Iterable[Any], threads: int | None = None) -> list[Any]:
     """``[fn(*item) for item in items]``, the items shared out in contiguous groups among threads.
 
     The calling thread takes the first group. The results come back in the order of ``items``;
@@ -261,7 +263,7 @@ def run(fn, items, threads=None):
     return out
 
 
-def background(fn, *args):
+def background(fn: Callable[..., Any], *args: Any) -> Future:
     """``fn(*args)`` started on one of the pool's threads, while the caller goes on: a
     ``concurrent.futures.Future`` (``.result()`` waits, and re-raises what ``fn`` raised). For
     work that releases the GIL (a ctypes call, a compiled loop) and does not need the caller's
@@ -287,7 +289,7 @@ def background(fn, *args):
 
 
 @contextlib.contextmanager
-def blas_one_thread():
+def blas_one_thread() -> Iterator[None]:
     """BLAS (numpy's and scipy's OpenBLAS, MKL, ...) limited to one thread inside a ``with``.
 
     For loops that o3dheat parallelizes itself: two thread pools on the same cores slow each

@@ -1,10 +1,12 @@
 """Geometry: mesh arrays and checks, the FEM's welding, repairs, resamplings, transfers, point clouds.
 
-Entry points: :func:`as_arrays`, :func:`check_mesh` (:mod:`o3dheat.geometry.mesh`), :func:`prepare`
-(:mod:`o3dheat.geometry.welding`), :func:`repair` (:mod:`o3dheat.geometry.repairs`), :func:`resample`
-and the resamplings (:mod:`o3dheat.geometry.sampling`), :func:`transfer` and :func:`nearest`
-(:mod:`o3dheat.geometry.interpolation`), :func:`reconstruct` (:mod:`o3dheat.geometry.points`).
-"""
+Entry points: :func:`~o3dheat.geometry.mesh.as_arrays`, :func:`~o3dheat.geometry.mesh.check_mesh`
+(:mod:`o3dheat.geometry.mesh`), :func:`~o3dheat.geometry.welding.prepare`
+(:mod:`o3dheat.geometry.welding`), :func:`~o3dheat.geometry.repairs.repair`
+(:mod:`o3dheat.geometry.repairs`), :func:`~o3dheat.geometry.sampling.resample` and the resamplings
+(:mod:`o3dheat.geometry.sampling`), :func:`~o3dheat.geometry.interpolation.transfer` and
+:func:`~o3dheat.geometry.interpolation.nearest` (:mod:`o3dheat.geometry.interpolation`),
+:func:`~o3dheat.geometry.points.reconstruct` (:mod:`o3dheat.geometry.points`)."""
 
 from .interpolation import nearest, transfer
 from .mesh import MeshReport, as_arrays, check_mesh, check_points, face_areas, mesh_of, note_repair

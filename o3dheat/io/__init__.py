@@ -1,10 +1,12 @@
 """Files: mesh reading and writing (one READERS/WRITERS table), atomic writes, TOML, sample meshes.
 
-Entry points: :func:`read_mesh`, :func:`read_geometry`, :func:`write_mesh`, :func:`write_geometry`
-(:mod:`o3dheat.io.meshes`), :func:`atomic_write`, :func:`atomic_write_text`
-(:mod:`o3dheat.io.files`), :func:`read_toml` (:mod:`o3dheat.io.toml`), :func:`sample_mesh`,
-:func:`default_mesh`, :func:`bumpy_torus` (:mod:`o3dheat.io.samples`).
-"""
+Entry points: :func:`~o3dheat.io.meshes.read_mesh`, :func:`~o3dheat.io.meshes.read_geometry`,
+:func:`~o3dheat.io.meshes.write_mesh`, :func:`~o3dheat.io.meshes.write_geometry`
+(:mod:`o3dheat.io.meshes`), :func:`~o3dheat.io.files.atomic_write`,
+:func:`~o3dheat.io.files.atomic_write_text` (:mod:`o3dheat.io.files`),
+:func:`~o3dheat.io.toml.read_toml` (:mod:`o3dheat.io.toml`), :func:`~o3dheat.io.samples.sample_mesh`,
+:func:`~o3dheat.io.samples.default_mesh`, :func:`~o3dheat.io.samples.bumpy_torus`
+(:mod:`o3dheat.io.samples`)."""
 
 from .files import atomic_write, atomic_write_text
 from .meshes import READERS, WRITERS, read_geometry, read_mesh, write_geometry, write_mesh

@@ -1,10 +1,11 @@
 """Pipelines: filters and their registry, batches of files, robustness studies on Dask.
 
-Entry points: :func:`apply` and :func:`one_column` (:mod:`o3dheat.pipelines.filters`; the filter SDK
-is :mod:`o3dheat.pipelines.site`), :func:`run`, :func:`summary` and :func:`named_error`
-(:mod:`o3dheat.pipelines.batch`), :func:`robustness_study` and :func:`load_config`
-(:mod:`o3dheat.pipelines.study`).
-"""
+Entry points: :func:`~o3dheat.pipelines.filters.apply` and :func:`~o3dheat.pipelines.columns.one_column`
+(:mod:`o3dheat.pipelines.filters`; the filter SDK is :mod:`o3dheat.pipelines.site`),
+:func:`~o3dheat.pipelines.batch.run`, :func:`~o3dheat.pipelines.batch.summary` and
+:func:`~o3dheat.pipelines.batch.named_error` (:mod:`o3dheat.pipelines.batch`),
+:func:`~o3dheat.pipelines.study.robustness_study` and :func:`~o3dheat.pipelines.study.load_config`
+(:mod:`o3dheat.pipelines.study`)."""
 
 import importlib
 

@@ -1,10 +1,12 @@
 """Spectral operators: linear FEM, Cholesky factors, eigenpairs, heat kernels, exact heat flow.
 
-Entry points: :func:`eigensolve` (:class:`Spectrum`), :class:`HeatKernel` and :func:`heat_kernel`,
-:func:`heat_flow` and :class:`HeatFlow`, :func:`diffuse`, :func:`stiffness_matrix` and
-:func:`mass_matrix`; the modules, in the order of the data flow: fem -> linalg (memory) -> lanczos
--> spectrum (cache) -> kernel (variants) -> diffusion, krylov -> heatflow.
-"""
+Entry points: :func:`~o3dheat.spectral.spectrum.eigensolve`
+(:class:`~o3dheat.spectral.spectrum.Spectrum`), :class:`~o3dheat.spectral.kernel.HeatKernel` and
+:func:`~o3dheat.spectral.kernel.heat_kernel`, :func:`~o3dheat.spectral.heatflow.heat_flow` and
+:class:`~o3dheat.spectral.heatflow.HeatFlow`, :func:`~o3dheat.spectral.diffusion.diffuse`,
+:func:`~o3dheat.spectral.fem.stiffness_matrix` and :func:`~o3dheat.spectral.fem.mass_matrix`; the
+modules, in the order of the data flow: fem -> linalg (memory) -> lanczos -> spectrum (cache) -> kernel
+(variants) -> diffusion, krylov -> heatflow."""
 
 from .cache import clear_cache, set_cache
 from .diffusion import diffuse

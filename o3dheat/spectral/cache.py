@@ -16,7 +16,9 @@ import logging
 import os
 import sys
 from collections import OrderedDict
+from collections.abc import Callable, Hashable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -153,7 +155,7 @@ class SpectrumCache:
         self.max_entries = max_entries
         self.disk = None
 
-    def get(self, key, compute):
+    def get(self, key: Hashable, compute: Callable[[], Any]) -> Any:
         """``compute()``, remembered under ``key``.
 
         Parameters
@@ -238,7 +240,7 @@ def clear_cache() -> None:
     SPECTRA.clear()
 
 
-def memoized(key, compute):
+def memoized(key: Hashable, compute: Callable[[], Any]) -> Any:
     """``compute()``, remembered under ``key`` among the last results (least recently used first
     out: at most 8 and :func:`memory_cache_max_bytes`, the newest always kept): the one in-memory
     cache of spectra, for meshes and for operators built elsewhere (:data:`SPECTRA`).
@@ -266,7 +268,7 @@ def memoized(key, compute):
     return SPECTRA.get(key, compute)
 
 
-def memoized_has(key) -> bool:
+def memoized_has(key: Hashable) -> bool:
     """Whether :func:`memoized` holds a result for ``key`` now.
 
     Parameters

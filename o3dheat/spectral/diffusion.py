@@ -76,7 +76,7 @@ def _mass_solver(B, backend):
 
 
 def diffuse(mesh: MeshLike, f: FieldLike, dt: float, steps: int, scheme: str = "explicit", mass: str = "consistent",
-            backend: str = "auto", return_history: bool = False):
+            backend: str = "auto", return_history: bool = False) -> np.ndarray:
     """Diffuse per-vertex fields by time stepping (paper eq. (8), or backward Euler).
 
     Parameters

@@ -180,7 +180,7 @@ def voronoi_areas(V: ArrayLike, F: ArrayLike) -> np.ndarray:
     return _assembled(V, F, consistent=False)[2]
 
 
-def operators(V: ArrayLike, F: ArrayLike, mass: str = "consistent", pattern: tuple | None = None):
+def operators(V: ArrayLike, F: ArrayLike, mass: str = "consistent", pattern: tuple | None = None) -> tuple[sp.csc_matrix, sp.csc_matrix, np.ndarray]:
     """The stiffness matrix, a mass matrix and the Voronoi areas in one pass over the faces.
 
     Parameters

@@ -264,7 +264,7 @@ class HeatFlow:
         return want if free is None else max(min(want, free // 2), 64 * 2**20)
 
     def apply(self, f: FieldLike, t: TimesLike, tol: float | None = None, *, return_report: bool = False,
-              max_steps: int = 1000):
+              max_steps: int = 1000) -> np.ndarray | tuple[np.ndarray, FlowReport]:
         """``Φ_t f = exp(−(t/2) W⁻¹L) f`` (the full kernel) at one or many times.
 
         Parameters
@@ -452,7 +452,7 @@ class HeatFlow:
 
 def heat_flow(mesh: MeshLike, f: FieldLike, t: TimesLike, *, variant: str = "weighted", normalize: str | None = None,
               transfer: Callable | Sequence[float] | None = None, tol: float = 1e-8, return_report: bool = False,
-              backend: str = "auto"):
+              backend: str = "auto") -> np.ndarray | tuple[np.ndarray, FlowReport]:
     """``Φ_t f`` with the full heat kernel ``exp(−(t/2) W⁻¹L)``: no eigenpairs, no truncation.
 
     The one-call twin of :class:`HeatFlow` (whose operators and factors it caches for later calls

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -47,7 +48,7 @@ __all__ = ["HeatKernel", "heat_kernel"]
 
 
 def heat_kernel(mesh: MeshLike, k: int = 100, variant: str = "weighted", normalize: str | None = None,
-                transfer: Callable | Sequence[float] | None = None, **eigensolve_options) -> HeatKernel:
+                transfer: Callable | Sequence[float] | None = None, **eigensolve_options: Any) -> HeatKernel:
     """The heat kernel ``variant`` of a mesh: its eigenproblem solved with the right mass, then
     :class:`HeatKernel`.
 
@@ -233,7 +234,7 @@ class HeatKernel:
         f, p = self._unit(self._field(f))
         return self._back(self.spectrum.eigenvectors.T @ self._weigh(f), p, "the spectral coefficients")
 
-    def smooth(self, f: FieldLike, t: TimesLike, return_bound: bool = False):
+    def smooth(self, f: FieldLike, t: TimesLike, return_bound: bool = False) -> np.ndarray | tuple[np.ndarray, float | np.ndarray]:
         """Feature map ``Φ_t f = X D_t Xᵀ W f`` (eq. (6), truncated to k eigenpairs).
 
         Parameters
@@ -285,7 +286,7 @@ class HeatKernel:
 
     __call__ = smooth
 
-    def hks(self, t: TimesLike, form: str = HKS_DEFAULT, return_bound: bool = False):
+    def hks(self, t: TimesLike, form: str = HKS_DEFAULT, return_bound: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """Heat kernel signature at time(s) t.
 
         Parameters

@@ -253,7 +253,7 @@ def _difference(Y, Yold):
 def propagate(solve: Callable, W: sp.spmatrix | None, F: ArrayLike, taus: ArrayLike, gamma: float, *,
               null: tuple | None = None, tol: float = 1e-8, max_steps: int = 1000, rates: Callable | None = None,
               null_rate: float = 0.0, basis_bytes: float | None = None, min_steps: int = MIN_STEPS,
-              out: np.ndarray | None = None, release: Callable | None = None):
+              out: np.ndarray | None = None, release: Callable | None = None) -> tuple[np.ndarray, Propagation]:
     """``exp(−τ W⁻¹L) F`` at every τ, from a solver of ``W + γL`` (see the module notes).
 
     Parameters

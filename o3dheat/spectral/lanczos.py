@@ -175,7 +175,7 @@ class _Rows:
 
 def block_lanczos(L: sp.spmatrix, B: sp.spmatrix, solve: Callable, k: int, sigma: float, block: int = 8,
                   tol: float = 1e-8, max_basis: int | None = None, max_restarts: int = 100, seed: int = 0,
-                  refine: bool = True, start: ArrayLike | None = None):
+                  refine: bool = True, start: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Smallest k eigenpairs of ``L x = λ B x`` by block shift-invert Lanczos.
 
     Parameters
@@ -386,7 +386,7 @@ def _ritz_vectors(L, B, VT, Z, nu, c, m, k, sigma, refine, info):
     return lam, X, info
 
 
-def rayleigh_ritz(L: sp.spmatrix, B: sp.spmatrix, X: np.ndarray, chunk: int = 32, overwrite: bool = False):
+def rayleigh_ritz(L: sp.spmatrix, B: sp.spmatrix, X: np.ndarray, chunk: int = 32, overwrite: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Rayleigh-Ritz of the pencil (L, B) in the span of the columns of X.
 
     Parameters

@@ -2,7 +2,7 @@
 
 :mod:`~o3dheat.visualization.plot` draws fields on surfaces, :mod:`~o3dheat.visualization.charts`
 plain matplotlib charts, and :mod:`~o3dheat.visualization.figures` holds the figure recipes
-(:func:`paper_figures`, :func:`study_figures`).
+(:func:`~o3dheat.visualization.figures.paper_figures`, :func:`~o3dheat.visualization.figures.study_figures`).
 """
 
 from .figures import paper_figures, study_figures
