@@ -178,7 +178,7 @@ def main():
         child(method, path, int(nfields), grid, out)
         return
     import o3dheat
-    from o3dheat.spectral.spectrum import clear_cache
+    from o3dheat.spectral.cache import clear_cache
 
     wanted = set(args.cases.split(","))
     cases = [(m, g, c) for g in GRIDS for c in FIELDS for m in METHODS

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from o3dheat.errors import MeshError
+from o3dheat.errors import MeshError, NoSuchFile
 
 try:
     import tomllib
@@ -33,9 +33,10 @@ def read_toml(path: PathLike) -> dict[str, Any]:
     Raises
     ------
     MeshError
-        The file is not UTF-8 or not valid TOML.
+        The file is not UTF-8 or not valid TOML; :class:`~o3dheat.errors.NoSuchFile` (also a
+        ``FileNotFoundError``) when it is missing.
     OSError
-        The file cannot be read (missing, a folder, no permission): the file system's own error.
+        The file cannot be read (a folder, no permission): the file system's own error.
 
     Examples
     --------
@@ -47,6 +48,8 @@ def read_toml(path: PathLike) -> dict[str, Any]:
     {'filter': [{'name': 'scalar'}]}
     """
     path = Path(path)
+    if not path.exists():
+        raise NoSuchFile(f"cannot read {path}: no such file")
     try:
         return tomllib.loads(path.read_text(encoding="utf-8"))
     except UnicodeDecodeError as e:

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from o3dheat.errors import MeshError
+from o3dheat.errors import MeshError, NoSuchFile
 from o3dheat.io import atomic_write
 
 from . import fem
@@ -203,9 +203,12 @@ def spectrum_arrays(s):
 
 def read_spectrum(path):
     """The fields of a :class:`o3dheat.Spectrum <o3dheat.spectral.spectrum.Spectrum>` from a :meth:`~o3dheat.spectral.spectrum.Spectrum.save` file,
-    unchecked (the caller checks them); a MeshError when the file is not one, an OSError (naming
-    the path) when it cannot be read (missing, a folder, no permission)."""
+    unchecked (the caller checks them); a MeshError when the file is not one, a
+    :class:`~o3dheat.errors.NoSuchFile` when it is missing, the file system's OSError when it cannot
+    be read (a folder, no permission)."""
     path = Path(path)
+    if not path.exists():
+        raise NoSuchFile(f"no such file: {path}")
     try:
         with np.load(path, allow_pickle=False) as z:
             a = {name: z[name] for name in z.files}

@@ -197,8 +197,10 @@ class Spectrum:
         ------
         MeshError
             Not a spectrum file, or one that fails a check (named in the message).
+        NoSuchFile
+            The file is missing (a MeshError and a FileNotFoundError).
         OSError
-            The file cannot be read (missing, a folder, no permission): the path is named.
+            The file cannot be read (a folder, no permission): the file system's own error.
 
         Examples
         --------

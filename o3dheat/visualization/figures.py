@@ -309,7 +309,7 @@ def _track_entries(V, F, f, out, name, up, t_max=None, count=TRACK_SCALES, longe
              f"{alive} live on past the last scale (▶); t = 0 is drawn one grid step left of t = {t[1]:.3g} "
              "on the log axis" + (f"; {int(born_flat.sum()):,} tracks born on the {flat} part(s) where Φ_t f "
                                   "becomes constant to rounding (it varies there by at most "
-                                  f"{plot.FLAT_RTOL:g} of its largest magnitude, and is taken as constant "
+                                  f"{_panels.FLAT_RTOL:g} of its largest magnitude, and is taken as constant "
                                   "there) are left out: critical points of the vertices' order, not of the field"
                                   if born_flat.any() else ""))]
 

@@ -34,7 +34,7 @@ from o3dheat.topology import Surface
 from o3dheat.topology import critical_points as find_critical
 
 from . import _layout, _panels, _render
-from ._panels import CRITICAL_COLORS, FLAT_RTOL, MARKER_COVER, MAX_CRITICAL_POINTS  # noqa: F401
+from ._panels import CRITICAL_COLORS  # noqa: F401 - public here (a dict: the same object)
 from ._render import renderer_available
 from .charts import lifetime_chart, persistence_diagram, scale_space, study
 

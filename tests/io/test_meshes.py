@@ -922,13 +922,15 @@ def test_a_missing_input_is_both_a_mesh_error_and_file_not_found(tmp_path):
     """Errors by kind (issue 23): a path naming no file is a bad argument and the file system's
     FileNotFoundError at once, wherever o3dheat checks an input path before reading it."""
     import o3dheat.pipelines.filters as flt
+    from o3dheat import Spectrum
     from o3dheat.errors import MeshError, NoSuchFile
-    from o3dheat.io import read_geometry, read_mesh
+    from o3dheat.io import read_geometry, read_mesh, read_toml
     from o3dheat.pipelines.batch import expand
 
     missing = tmp_path / "nothing.ply"
     for call in (lambda: read_mesh(missing), lambda: read_geometry(missing), lambda: expand([str(missing)]),
-                 lambda: flt.Chain.load(tmp_path / "chain.toml")):
+                 lambda: flt.Chain.load(tmp_path / "chain.toml"), lambda: read_toml(tmp_path / "study.toml"),
+                 lambda: Spectrum.load(tmp_path / "spectrum.npz")):
         with pytest.raises(NoSuchFile) as info:
             call()
         assert isinstance(info.value, MeshError) and isinstance(info.value, FileNotFoundError)

@@ -14,7 +14,8 @@ def test_non_utf8_toml_is_a_mesh_error(tmp_path):
 
 
 def test_unreadable_toml_is_the_file_systems_error(tmp_path):
-    """Issue 23: "OSError stays OSError": a missing file is the OSError open() raises, naming it."""
+    """Issue 23: "OSError stays OSError": a folder is the OSError open() raises; a missing file is
+    a NoSuchFile, a FileNotFoundError naming it (and a MeshError, like every missing input)."""
     from o3dheat.io import read_toml
     with pytest.raises(FileNotFoundError, match="missing.toml"):
         read_toml(tmp_path / "missing.toml")

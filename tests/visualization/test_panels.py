@@ -62,7 +62,7 @@ def test_markers_on_a_small_part_are_sized_for_it():
     V, F, n = two_spheres(tiny=0.1)
     f = V[:, 2] + np.r_[np.zeros(n), 0.01 * np.random.default_rng(1).standard_normal(n)]
     cp = o3dheat.critical_points((V, F), f)
-    assert 20 < sum(cp.counts) <= plot.MAX_CRITICAL_POINTS
+    assert 20 < sum(cp.counts) <= _panels.MAX_CRITICAL_POINTS
     img = plot.render((V, F), f, level_sets=None, view=(0, -90))
     small = img[:, int(img.shape[1] * 0.85):]
     surface = ink(small).sum()
