@@ -1,13 +1,13 @@
 """The o3dheat exception family: :class:`MeshError` (bad input; :class:`NoSuchFile`), :class:`SolverError`
-(a computation failed; :class:`ConvergenceError`).
+(a computation failed; :class:`ConvergenceError`, :class:`OutOfMemory`).
 
 Every error raised on purpose by o3dheat is a :class:`MeshError` (a ``ValueError``) or a
 :class:`SolverError` (a ``RuntimeError``; :class:`ConvergenceError` and
-:class:`o3dheat.spectral.memory.OutOfMemory` are kinds of it), with a message that says what was wrong and
+:class:`OutOfMemory` are kinds of it), with a message that says what was wrong and
 what to do about it.
 """
 
-__all__ = ["MeshError", "NoSuchFile", "SolverError", "ConvergenceError"]
+__all__ = ["MeshError", "NoSuchFile", "SolverError", "ConvergenceError", "OutOfMemory"]
 
 
 class MeshError(ValueError):
@@ -63,4 +63,22 @@ class ConvergenceError(SolverError):
     >>> import o3dheat
     >>> issubclass(o3dheat.errors.ConvergenceError, o3dheat.SolverError)
     True
+    """
+
+
+class OutOfMemory(SolverError):
+    """The work does not fit in the memory this process may use (estimated before, or reported by
+    CHOLMOD): no other backend is tried, since it would need as much and may crash the process.
+
+    Examples
+    --------
+    >>> import o3dheat, o3dheat.spectral.memory as mm
+    >>> from o3dheat.errors import OutOfMemory
+    >>> issubclass(OutOfMemory, o3dheat.SolverError)
+    True
+    >>> try:
+    ...     mm.check_memory(2**70, "this eigensolve", "use a smaller mesh")    # 1 ZiB
+    ... except OutOfMemory as e:
+    ...     print(str(e).split(",")[0])
+    this eigensolve needs about 1099511627776.00 GiB
     """

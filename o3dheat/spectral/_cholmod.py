@@ -20,9 +20,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from o3dheat import parallel
-from o3dheat.errors import SolverError
+from o3dheat.errors import OutOfMemory, SolverError
 
-from .memory import OutOfMemory, check_memory
+from .memory import check_memory
 
 log = logging.getLogger("o3dheat")
 

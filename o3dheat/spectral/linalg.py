@@ -43,10 +43,10 @@ import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike
 
 from o3dheat import parallel
-from o3dheat.errors import MeshError, SolverError
+from o3dheat.errors import MeshError, OutOfMemory, SolverError
 
 from ._cholmod import Analysis, CholmodFactor, NotPositiveDefinite, factor_nnz, library
-from .memory import OutOfMemory, check_memory
+from .memory import check_memory
 
 __all__ = ["BACKENDS", "Factor", "available_backends", "factorize", "analyze", "Analysis"]
 

@@ -2,32 +2,15 @@
 
 Entry points: :func:`available_memory`, :func:`memory_limits` (the system's memory, a memory
 cgroup's limit, a Dask worker's, ``ulimit -v``), :func:`check_memory`, which raises
-:class:`OutOfMemory` when an estimate exceeds the tightest of them.
+:class:`~o3dheat.errors.OutOfMemory` when an estimate exceeds the tightest of them.
 """
 
 from __future__ import annotations
 
 from o3dheat import parallel
-from o3dheat.errors import SolverError
+from o3dheat.errors import OutOfMemory
 
-__all__ = ["OutOfMemory", "available_memory", "memory_limits", "check_memory", "peak_memory", "THREAD_ADDRESS_SPACE"]
-
-
-class OutOfMemory(SolverError):
-    """The work does not fit in the memory this process may use (estimated before, or reported by
-    CHOLMOD): no other backend is tried, since it would need as much and may crash the process.
-
-    Examples
-    --------
-    >>> import o3dheat, o3dheat.spectral.memory as mm
-    >>> issubclass(mm.OutOfMemory, o3dheat.SolverError)
-    True
-    >>> try:
-    ...     mm.check_memory(2**70, "this eigensolve", "use a smaller mesh")    # 1 ZiB
-    ... except mm.OutOfMemory as e:
-    ...     print(str(e).split(",")[0])
-    this eigensolve needs about 1099511627776.00 GiB
-    """
+__all__ = ["available_memory", "memory_limits", "check_memory", "peak_memory", "THREAD_ADDRESS_SPACE"]
 
 
 def available_memory() -> int | None:
@@ -208,7 +191,7 @@ _LIMIT_NAMES = {"cgroup": " (under the memory limit of this process's cgroup: a 
 
 
 def check_memory(needed: int, what: str, advice: str) -> None:
-    """Raise :class:`OutOfMemory` when ``needed`` bytes exceed what this process may allocate
+    """Raise :class:`~o3dheat.errors.OutOfMemory` when ``needed`` bytes exceed what this process may allocate
     (the message names the limit: the system's memory, a cgroup's, a Dask worker's, ulimit -v).
 
     Parameters
@@ -246,7 +229,7 @@ def peak_memory(n: int, k: int = 100, block: int = 8) -> int:
     vertex for the Cholesky factor, the operators and the blocks of vectors, as measured on a mesh
     of 1M vertices (``scripts/bench_spectrum.py``: resident memory added while solving peaked at
     3.4 GiB for k = 100, 6.4 GiB for k = 300). A mesh fits when this is below the
-    memory available; eigensolve refuses with :class:`o3dheat.spectral.memory.OutOfMemory` otherwise.
+    memory available; eigensolve refuses with :class:`o3dheat.errors.OutOfMemory` otherwise.
 
     Parameters
     ----------

@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 
 from o3dheat import checks
-from o3dheat.errors import MeshError
+from o3dheat.errors import MeshError, OutOfMemory
 from o3dheat.geometry import prepare
 from o3dheat.io import atomic_write
 from o3dheat.typing import MeshLike, PathLike
@@ -42,7 +42,6 @@ from o3dheat.typing import MeshLike, PathLike
 from . import _spectrum_files, fem
 from ._solvers import solve_eigenproblem, weyl_gap
 from .cache import SPECTRA, disk_folder, entry_valid, load_entry, memoized, save_entry, spectrum_key
-from .memory import OutOfMemory
 
 __all__ = ["Spectrum", "eigensolve", "eigensolve_operators", "shared_eigensolve", "inverse_mass_bound"]
 

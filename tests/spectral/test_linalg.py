@@ -9,7 +9,7 @@ from linalg_cases import needs_cholmod, spd_matrix
 import o3dheat.spectral._cholmod as ch
 import o3dheat.spectral.linalg as la
 import o3dheat.spectral.memory as mm
-from o3dheat.errors import MeshError
+from o3dheat.errors import MeshError, OutOfMemory
 from o3dheat.spectral import fem
 
 
@@ -68,20 +68,20 @@ def test_memory_is_checked_before_factorizing_and_out_of_memory_never_falls_back
     A = sp.diags([np.full(99, -1.0), np.full(100, 3.0), np.full(99, -1.0)], [-1, 0, 1], format="csc")
     monkeypatch.setattr(mm, "memory_limits", lambda: {"system": 1000})  # bytes
     if ch.library() is not None:
-        with pytest.raises(mm.OutOfMemory, match="Cholesky factor .* needs about"):
+        with pytest.raises(OutOfMemory, match="Cholesky factor .* needs about"):
             la.factorize(A, backend="cholmod")
     tried = []
     monkeypatch.setattr(la, "_cholespy", lambda A: tried.append("cholespy"))
 
     def oom(A, mode, analysis=None):
-        raise mm.OutOfMemory("CHOLMOD ran out of memory")
+        raise OutOfMemory("CHOLMOD ran out of memory")
 
     monkeypatch.setattr(la, "_cholmod", oom)
-    with pytest.raises(mm.OutOfMemory):
+    with pytest.raises(OutOfMemory):
         la.factorize(A)
     assert tried == []  # cholespy would need as much memory, and crashes when it does not get it
     monkeypatch.setattr(la, "_cholmod", lambda A, mode, analysis=None: (_ for _ in ()).throw(MemoryError()))
-    with pytest.raises(mm.OutOfMemory, match="ran out of memory"):
+    with pytest.raises(OutOfMemory, match="ran out of memory"):
         la.factorize(A)
     assert tried == []
 
@@ -120,7 +120,7 @@ def test_cholespy_memory_is_estimated_before_it_starts(monkeypatch, binding):
     np.testing.assert_allclose(A @ ok.solve(np.ones(1000)), 1.0)
     monkeypatch.setattr(mm, "memory_limits", lambda: {"system": need - 1})
     monkeypatch.setattr(cholespy, "CholeskySolverD", lambda *a: pytest.fail("cholespy was started"))
-    with pytest.raises(mm.OutOfMemory, match="cholespy's factorization of the 1000 x 1000 matrix needs about"):
+    with pytest.raises(OutOfMemory, match="cholespy's factorization of the 1000 x 1000 matrix needs about"):
         la.factorize(A, backend="cholespy")
     # a mesh Laplacian: the estimate covers what cholespy was measured to use (38-60 B per n log2 n)
     from conftest import icosphere

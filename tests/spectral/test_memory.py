@@ -3,6 +3,7 @@
 import pytest
 
 import o3dheat.spectral.memory as mm
+from o3dheat.errors import OutOfMemory
 
 
 def test_available_memory_sees_an_address_space_limit():
@@ -59,7 +60,7 @@ def test_cgroup_v1_container_without_namespace_and_unlimited(tmp_path):
 def test_memory_check_names_the_limit_that_binds(monkeypatch):
     monkeypatch.setattr(mm, "_cgroup_room", lambda: 2**30)
     assert mm.memory_limits()["cgroup"] == 2**30 and mm.available_memory() <= 2**30
-    with pytest.raises(mm.OutOfMemory, match=r"needs about 2.00 GiB, but only 1.00 GiB .*cgroup: a container's"):
+    with pytest.raises(OutOfMemory, match=r"needs about 2.00 GiB, but only 1.00 GiB .*cgroup: a container's"):
         mm.check_memory(2**31, "this eigensolve", "decimate the mesh")
 
 
