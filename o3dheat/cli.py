@@ -18,6 +18,7 @@ from pathlib import Path
 
 import o3dheat
 from o3dheat import demo, geometry, io
+from o3dheat._outputs import check_folder, check_output, output_folder, same_file
 from o3dheat.errors import MeshError, SolverError
 from o3dheat.pipelines import batch, study
 from o3dheat.pipelines import filters as flt
@@ -281,50 +282,6 @@ def _progress(total):
     return step, close
 
 
-def _same_file(a, b):
-    """Whether two paths name the same file (existing or not)."""
-    try:
-        return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
-    except OSError:
-        return False
-
-
-def _check_output(path, overwrite):
-    """Refuse, before any computation, an output that is a folder, lies in a missing folder, or
-    exists without --overwrite."""
-    if path.is_dir():
-        raise MeshError(f"{path} is a folder: give a file name")
-    if not path.parent.is_dir():
-        raise MeshError(f"the folder {path.parent} does not exist: create it first")
-    if path.exists() and not overwrite:
-        raise MeshError(f"{path} exists: add --overwrite to replace it")
-
-
-def _check_folder(path, option):
-    """Refuse, without creating anything, an output folder that cannot be created: a file, or under
-    a file or a folder we cannot write in."""
-    import os
-
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise MeshError(f"{path} is a file: {option} takes a folder")
-    parent = path
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    if parent != path and (not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK)):
-        why = "a file" if not parent.is_dir() else "not writable"
-        raise MeshError(f"cannot create the folder {path} ({option}): {parent} is {why}")
-
-
-def _output_folder(path, option):
-    """Create an output folder (and its parents) before any computation, or MeshError."""
-    _check_folder(path, option)
-    try:
-        Path(path).mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise MeshError(f"cannot create the folder {path} ({option}): {e.strerror}") from None
-
-
 def _chain(args):
     """The chain of --chain and the -f filters (MeshError when there is none)."""
     chain = flt.Chain.load(args.chain) if args.chain else flt.Chain()
@@ -361,16 +318,16 @@ def _apply(args):
         raise MeshError(f"the output must end in .ply or .npz: {dst}")
     if src.exists() and dst.exists() and src.resolve() == dst.resolve() and not args.overwrite:
         raise MeshError(f"refusing to overwrite the input {src}: choose another output or add --overwrite")
-    _check_output(dst, args.overwrite)
+    check_output(dst, args.overwrite)
     if args.save_chain:
         saved = Path(args.save_chain)
         if saved.suffix.lower() != ".toml":
             raise MeshError(f"--save-chain writes a TOML file: {saved} should end in .toml")
         for other, what in ((src, "the input mesh"), (dst, "the output mesh"),
                             (Path(args.chain) if args.chain else None, "the --chain file")):
-            if other is not None and _same_file(saved, other):
+            if other is not None and same_file(saved, other):
                 raise MeshError(f"--save-chain {saved} is {what}: choose another file")
-        _check_output(saved, args.overwrite)
+        check_output(saved, args.overwrite)
     chain = _chain(args)
     geometry = io.read_geometry(src)
     if args.cache:
@@ -389,9 +346,9 @@ def _repair(args):
     src, dst = Path(args.input), Path(args.output)
     if dst.suffix.lower() not in (".ply", ".npz"):
         raise MeshError(f"the output must end in .ply or .npz: {dst}")
-    if src.exists() and _same_file(src, dst):
+    if src.exists() and same_file(src, dst):
         raise MeshError(f"refusing to overwrite the input {src}: choose another output")
-    _check_output(dst, args.overwrite)
+    check_output(dst, args.overwrite)
     r = geometry.repair(io.read_mesh(src), split=not args.no_split, orient=not args.no_orient,
                min_component_faces=args.min_component_faces)
     io.write_mesh(dst, r.mesh, binary=not args.ascii, overwrite=True)
@@ -415,11 +372,11 @@ def _spectrum(args):
     out = Path(args.out)
     if out.suffix.lower() != ".npz":
         raise MeshError(f"the spectrum is written as .npz: {out}")
-    _check_output(out, args.overwrite)
+    check_output(out, args.overwrite)
     if args.k < 1:
         raise MeshError(f"-k must be at least 1, got {args.k}")
     s = spectrum.eigensolve(io.read_mesh(args.input), k=args.k, mass=args.mass)
-    s.save(out, overwrite=True)  # _check_output refused an existing file without --overwrite
+    s.save(out, overwrite=True)  # check_output refused an existing file without --overwrite
     print(f"wrote {out}: {s.k} eigenpairs of {s.n} vertices, λ in [{s.eigenvalues[0]:.4g}, "
           f"{s.eigenvalues[-1]:.4g}], max residual {s.residuals.max():.1e} ({s.backend})")
 
@@ -441,7 +398,7 @@ def _figure(args):
                             f"{', '.join(k for k in mesh.vertex)}")
         field = flt.one_column(mesh.vertex[args.attribute].numpy(), args.attribute, args.column, option="--column ")
     created = not out.exists()
-    _output_folder(out, "-o")
+    output_folder(out, "-o")
     try:
         index = figures.paper_figures(mesh, args.out, field=field, k=args.k, noise=args.noise, seed=args.seed,
                               name=Path(args.input).stem, up=args.up, tracks=True)
@@ -454,7 +411,7 @@ def _figure(args):
 
 def _study(args):
     out = Path(args.out)
-    _check_folder(out, "--out")  # before the config's meshes are read
+    check_folder(out, "--out")  # before the config's meshes are read
     kw = study.load_config(args.config)
     table = study.robustness_study(out=out, scheduler=args.scheduler, **kw)  # creates out once connected
     ok = table[table["error"].fillna("") == ""]
@@ -517,9 +474,9 @@ def _demo(args):
         while out.exists():
             out, i = Path("o3dheat-demo") / f"bunny_heat-{i}.ply", i + 1
     else:
-        _check_output(Path(out), args.overwrite)
+        check_output(Path(out), args.overwrite)
     if not Path(out).parent.is_dir():  # the default folder, created before the work
-        _output_folder(Path(out).parent, "--out")
+        output_folder(Path(out).parent, "--out")
     demo.run(out=out, k=args.k, reduction=args.reduction, seed=args.seed)
 
 
