@@ -173,6 +173,8 @@ def read_geometry(path: PathLike) -> o3d.t.geometry.TriangleMesh | o3d.t.geometr
     ('PointCloud', 'int32', 49)
     """
     path = Path(path)
+    if path.is_dir():
+        raise MeshError(f"{path} is a folder: give a mesh file")
     if not path.is_file():
         raise NoSuchFile(f"no such file: {path}")
     return READERS.get(path.suffix.lower(), _read_open3d_mesh)(path)

@@ -436,6 +436,8 @@ class Chain:
         ['Scalar', 'Hks']
         """
         path = Path(path)
+        if path.is_dir():
+            raise MeshError(f"cannot read chain {path}: it is a folder")
         if not path.is_file():
             raise NoSuchFile(f"cannot read chain {path}: no such file")
         data = read_toml(path)

@@ -935,3 +935,16 @@ def test_a_missing_input_is_both_a_mesh_error_and_file_not_found(tmp_path):
             call()
         assert isinstance(info.value, MeshError) and isinstance(info.value, FileNotFoundError)
         assert str(tmp_path) in str(info.value)
+
+
+def test_a_folder_given_as_a_file_is_named_a_folder_not_a_missing_file(tmp_path):
+    """A folder where a mesh or chain file is expected exists: it is a MeshError saying so, not a
+    FileNotFoundError (the former 'no such file' named it missing)."""
+    import o3dheat.pipelines.filters as flt
+    from o3dheat.errors import MeshError
+    from o3dheat.io import read_mesh
+
+    for call in (lambda: read_mesh(tmp_path), lambda: flt.Chain.load(tmp_path)):
+        with pytest.raises(MeshError, match="folder") as info:
+            call()
+        assert not isinstance(info.value, FileNotFoundError)
