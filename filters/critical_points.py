@@ -7,7 +7,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.geometry import nearest
 from o3dheat.pipelines.site import (
     Operators,
     Site,
@@ -104,10 +103,6 @@ class CriticalPointsFilter:
             if S.representative is not None:  # the copies of a welded vertex follow their first copy
                 mask = mask[S.representative]
             kind[~mask] = 0
-        if not site.is_mesh:  # each surface label goes to its nearest point
-            out = np.zeros(site.n, np.int8)
-            crit = np.flatnonzero(kind)
-            out[nearest(np.arange(site.n), site.P, V[crit])] = kind[crit]
-            kind = out
+        (kind,) = site.labels_from_surface(kind != 0, kind)  # a cloud: at the nearest points
         site.set(self.output or f"{self.attribute}_critical", kind.astype(np.int8))
         return site.result()

@@ -8,7 +8,6 @@ import numpy as np
 
 from o3dheat import topology
 from o3dheat.errors import MeshError
-from o3dheat.geometry import nearest
 from o3dheat.pipelines.site import (
     Method,
     Operators,
@@ -195,12 +194,7 @@ class TracksFilter:
         kind[verts] = [KIND_CODES[k] for k in tr.kind[start]]
         if S.representative is not None:  # the copies of a welded vertex follow their first copy
             life, kind = life[S.representative], kind[S.representative]
-        if not site.is_mesh:  # each surface value goes to its nearest point
-            crit = np.flatnonzero(kind)
-            at = nearest(np.arange(site.n), site.P, V[crit])
-            life_out, kind_out = np.zeros(site.n), np.zeros(site.n, np.int8)
-            life_out[at], kind_out[at] = life[crit], kind[crit]
-            life, kind = life_out, kind_out
+        life, kind = site.labels_from_surface(kind != 0, life, kind)  # a cloud: at the nearest points
         site.set(f"{self.attribute}_lifetime", life)
         site.set(f"{self.attribute}_track_kind", kind)
         return site.result()

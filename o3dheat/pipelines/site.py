@@ -380,6 +380,28 @@ class Site:
         out = interpolation.transfer(flat, (V, F), self.P)
         return out.reshape((self.n,) + g.shape[1:])
 
+    def labels_from_surface(self, where: np.ndarray, *values: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Values that live at a few surface vertices (``where``, a mask: critical points, their
+        lifetimes) moved to the input points nearest those vertices, 0 elsewhere (a mesh: as given).
+
+        Examples
+        --------
+        >>> import numpy as np, open3d as o3d
+        >>> from o3dheat.pipelines.site import Site
+        >>> site = Site(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
+        >>> kind = np.zeros(site.n, np.int8); kind[3] = 1
+        >>> [v.nonzero()[0].tolist() for v in site.labels_from_surface(kind != 0, kind)]
+        [[3]]
+        """
+        if self.is_mesh:
+            return values
+        crit = np.flatnonzero(where)
+        at = interpolation.nearest(np.arange(self.n), self.P, self.surface()[0][crit])
+        out = tuple(np.zeros(self.n, np.asarray(v).dtype) for v in values)
+        for o, v in zip(out, values, strict=True):
+            o[at] = np.asarray(v)[crit]
+        return out
+
     def spectrum(self, k: int = 100, mass: str = "consistent", cache: typing.Any = None) -> Spectrum:
         """The spectrum of the surface with the mass ``mass`` (:data:`o3dheat.spectral.fem.MASS_KINDS`),
         shared by the filters (:func:`o3dheat.pipelines.filters.shared_spectrum`); robust-laplacian's for
