@@ -21,10 +21,8 @@ fi
 # import without them; libgl1/libegl1/libopengl0: pymeshlab silently loses its plugins without them.
 # libopenblas0-pthread: Debian's optimized BLAS, which becomes the system libblas.so.3 (through
 # update-alternatives) and so CHOLMOD's: supernodal factorizations of large meshes about 1.8x faster.
-# libvulkan1 and mesa-vulkan-drivers (lavapipe, software Vulkan): Open3D's offscreen renderer, which
-# draws o3dheat.visualization.plot's 3D figures with no display and no GPU (without them: a warning and flat drawings).
-pkgs=(libsuitesparse-dev libopenblas0-pthread libusb-1.0-0 libgomp1 libgl1 libegl1 libopengl0 libglu1-mesa
-      libvulkan1 mesa-vulkan-drivers)
+# (The figures are drawn by o3dheat's own rasterizer: no Vulkan, display or GPU needed.)
+pkgs=(libsuitesparse-dev libopenblas0-pthread libusb-1.0-0 libgomp1 libgl1 libegl1 libopengl0 libglu1-mesa)
 python3 -c 'import venv, ensurepip' 2>/dev/null || pkgs+=(python3-venv)
 python3 -c 'import sysconfig, os, sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' 2>/dev/null || pkgs+=(python3-dev)
 command -v gcc >/dev/null || pkgs+=(build-essential)

@@ -172,8 +172,6 @@ class Panel:
         about one are not drawn, see :meth:`marker_radii`); ``paths``: more segments to draw
         just off the surface, ``((m, 2, 3) positions, (m, 3) colours)`` (the tracks of
         :func:`tracks`)."""
-        import open3d as o3d
-
         V, F = self.V, self.F
         V = V - view.target  # about the origin: float32 keeps the detail of a scan far from it
         meshes = [_render.tmesh(V, F, self.rgb(self.f) * _render.shade(normals, view)[:, None])]
@@ -189,11 +187,8 @@ class Panel:
             keep = np.repeat(~grazing, 2)  # edge-on segments would stick out of the silhouette
             P = P[keep] + eps * toward[near[keep]]
             if len(P):
-                lines = o3d.t.geometry.LineSet()
-                lines.point.positions = o3d.core.Tensor(P.astype(np.float32))
-                lines.line.indices = o3d.core.Tensor(np.arange(len(P), dtype=np.int32).reshape(-1, 2))
-                lines.line.colors = o3d.core.Tensor(np.zeros((len(P) // 2, 3), np.float32))
-        if paths is not None and len(paths[0]):  # tubes: Filament draws lines one pixel wide, whatever the width
+                lines = (P.reshape(-1, 2, 3), np.zeros((len(P) // 2, 3)))  # solid black, as in the legend
+        if paths is not None and len(paths[0]):  # tubes: shaded, hidden where the surface is in front
             from scipy.spatial import cKDTree
 
             P = np.asarray(paths[0], dtype=np.float64).reshape(-1, 3) - view.target
@@ -219,18 +214,14 @@ class Panel:
                 T = (Fs[None] + len(Vs) * np.arange(len(idx))[:, None, None]).reshape(-1, 3)
                 shade = _render.shade(np.tile(Vs, (len(idx), 1)), view)
                 meshes.append(_render.tmesh(P, T, np.asarray(to_rgb(color))[None] * shade[:, None]))
-        eye = 4.0 * view.radius * view.d
         size = renderer.size
         width = max(2.5, size / 300 if line_width is None else line_width)  # thinner lines break up
         rows, cols = view.crop(size)
-        for _ in range(2):  # the framed surface always shows: a blank frame is drawn again, then refused
-            img = renderer.image(meshes, lines, width, np.zeros(3), eye, view.up,
-                                 view.half, 2.5 * view.radius, 5.5 * view.radius)[rows, cols]
-            if (img < 250).any(axis=2).mean() > 1e-3:
-                return img
-        raise SolverError(f"Open3D's offscreen renderer drew nothing for a mesh of {len(F)} faces framed in "
-                          f"view: a blank picture is not written; try renderer='matplotlib' "
-                          f"(O3DHEAT_RENDERER=matplotlib)")
+        img = renderer.image(meshes, lines, width, view)[rows, cols]
+        if not (img < 250).any(axis=2).mean() > 1e-3:  # cannot happen with the rasterizer: a guard
+            raise SolverError(f"the renderer drew nothing for a mesh of {len(F)} faces framed in view: "
+                              "a blank picture is not written")
+        return img
 
     def draw_matplotlib(self, ax, view_angles, view):
         """The fallback: matplotlib's 3D axes (painter's algorithm; lines and points are drawn

@@ -1,198 +1,101 @@
-"""Open3D's offscreen renderer (one per process) and a view's geometry: :func:`renderer`, :class:`View`.
+"""The static figures' renderer (one per process) and a view's geometry: :func:`renderer`, :class:`View`.
 
 :func:`renderer` gives the renderer to draw with (or None for matplotlib), :func:`renderer_available`
-says whether it starts here; :class:`View` frames a mesh in an orthographic view.
+says whether it works here (it always does: it needs nothing of the machine); :class:`View` frames a
+mesh in an orthographic view.
 
 Notes
 -----
-Surfaces are rendered by Filament through software Vulkan (Mesa's lavapipe: no display and no GPU
-needed), which needs the system packages ``libvulkan1`` and ``mesa-vulkan-drivers`` (Debian
-names; ``scripts/setup.sh`` installs them). Whether it starts is tried once per process in a child
-process (:func:`probe`): where Vulkan has no driver Filament aborts the whole process. Where it
-cannot start, "auto" warns once (``RuntimeWarning``) and the drawings use matplotlib's 3D axes.
-One renderer is kept per process (Open3D cannot destroy one safely); draw from one thread at a
-time. The meshes handed to it are tensor meshes of baked colours (:func:`tmesh`, :func:`tubes`,
-:func:`sphere`), shaded by :func:`shade`.
+Surfaces are drawn by o3dheat's own z-buffer rasterizer (:mod:`o3dheat.visualization._raster`):
+the figures bake their shading into vertex colours (:func:`shade`) and look through an orthographic
+camera, so hidden-surface removal and colour interpolation are all there is to do, in one
+deterministic pass on the CPU. It replaced Open3D's offscreen renderer (Filament over software
+Vulkan), whose frames came back blank now and then, more often under load: see
+``docs/details/figures.md``. ``renderer="open3d"`` is an old spelling of ``"raster"`` (deprecated).
+The meshes handed to it are ``(V, F, rgb)`` triples (:func:`tmesh`, :func:`tubes`), in the view's
+coordinates.
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-import sys
-import threading
 import warnings
 
 import numpy as np
 
 from o3dheat.errors import MeshError
 
-RENDER_SIZE = 1200  # pixels of the (square) offscreen render; panels are crops of it
+from . import _raster
+
+RENDER_SIZE = 1200  # pixels of the (square) render; panels are crops of it
 UP = {"z": [0, 1, 2], "y": [2, 0, 1], "x": [1, 2, 0]}  # cyclic: keeps the orientation
-RENDERERS = ("auto", "open3d", "matplotlib")
-MISSING = ("Open3D's offscreen renderer cannot start here: it needs Vulkan, which a machine without "
-           "a GPU gets from Mesa's software driver (lavapipe). Install the system packages libvulkan1 "
-           "and mesa-vulkan-drivers (Debian/Ubuntu: sudo apt-get install libvulkan1 mesa-vulkan-drivers; "
-           "scripts/setup.sh does it)")
+RENDERERS = ("auto", "raster", "matplotlib", "open3d")
 
 
-# ------------------------------------------------------------------ the renderer (one per process)
-lock = threading.RLock()
-state = {"probe": None, "renderer": None, "warned": False}
-
-PROBE = """
-import numpy as np, open3d as o3d
-R = o3d.visualization.rendering
-r = R.OffscreenRenderer(16, 16)
-mat = R.MaterialRecord()
-mat.shader = "defaultUnlit"
-r.scene.add_geometry("s", o3d.t.geometry.TriangleMesh.create_sphere(1.0, 4), mat)
-r.setup_camera(60.0, [0, 0, 0], [0, 0, 4], [0, 1, 0])
-print("O3DHEAT_RENDER_OK", np.asarray(r.render_to_image()).shape)
-"""
-
-
-def probe():
-    """Can Open3D's offscreen renderer start? Tried once per process in a child process: where
-    Vulkan has no driver, Filament aborts the whole process instead of raising."""
-    if state["probe"] is None:
-        import subprocess
-
-        try:
-            r = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, timeout=180)
-            ok = r.returncode == 0 and "O3DHEAT_RENDER_OK" in r.stdout
-            lines = [s for s in (r.stderr + r.stdout).splitlines() if s.strip() and "O3DHEAT" not in s]
-            why = "" if ok else (f" (exit status {r.returncode}: {lines[-1].strip()})" if lines
-                                 else f" (exit status {r.returncode})")
-        except (OSError, subprocess.SubprocessError) as e:
-            ok, why = False, f" ({e})"
-        state["probe"] = (ok, "" if ok else MISSING + why)
-    return state["probe"]
-
-
+# ------------------------------------------------------------------ the renderer
 def renderer_available() -> tuple[bool, str]:
-    """Whether fields are drawn as real 3D renders here, and if not, why.
+    """Whether fields are drawn as real 3D renders here (hidden surfaces removed), and if not, why.
 
     Returns
     -------
     ok : bool
-        True when Open3D's offscreen renderer works in this process (checked once, in a child
-        process, about a second).
+        Always True: the renderer is o3dheat's own rasterizer, which needs no display, GPU or
+        driver (the function stays for scripts that asked when Open3D's renderer drew the figures).
     reason : str
-        Empty when ``ok``; else what is missing and how to install it.
+        Empty.
 
     Examples
     --------
     >>> import o3dheat.visualization.plot as plot
-    >>> ok, reason = plot.renderer_available()
-    >>> ok or "libvulkan1" in reason
-    True
+    >>> plot.renderer_available()
+    (True, '')
     """
-    with lock:
-        return probe()
+    return True, ""
 
 
-@contextlib.contextmanager
-def quiet_output():
-    """Filament prints its start-up log on the process's stdout: keep it out of ours."""
-    for stream in (sys.stdout, sys.stderr):
-        if stream is not None:
-            stream.flush()
-    try:
-        saved = [os.dup(1), os.dup(2)]
-    except OSError:  # no standard streams to protect
-        yield
-        return
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 1)
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        try:  # C stdio buffers its lines when stdout is not a terminal: out with them, to /dev/null
-            import ctypes
-
-            ctypes.CDLL(None).fflush(None)
-        except (OSError, AttributeError):
-            pass
-        os.dup2(saved[0], 1)
-        os.dup2(saved[1], 2)
-        for fd in saved + [devnull]:
-            os.close(fd)
-
-
-class Renderer:
-    """Open3D's OffscreenRenderer set up for exact colours: unlit materials (the shading is baked
-    into the vertex colours), no post-processing (Filament's tone mapping, ambient occlusion and
-    anti-aliasing change the colours and cost seconds a frame in software), white background."""
+class Raster:
+    """Draws ``(V, F, rgb)`` meshes and line segments seen along ``-d`` in an orthographic view
+    into a square image ``size`` pixels wide (white background): see :mod:`._raster`."""
 
     def __init__(self, size):
-        import open3d as o3d
-
-        R = o3d.visualization.rendering
         self.size = size
-        with quiet_output(), o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-            self.r = R.OffscreenRenderer(size, size)
-            view = self.r.scene.view
-            view.set_post_processing(False)
-            view.set_antialiasing(False)
-            view.set_ambient_occlusion(False)
-            view.set_shadowing(False)
-            self.r.scene.show_skybox(False)
-            self.r.scene.set_background([1.0, 1.0, 1.0, 1.0])
-            self.r.render_to_image()  # the first frame logs too
-        self.surface = R.MaterialRecord()
-        self.surface.shader = "defaultUnlit"
-        self.line = R.MaterialRecord()
-        self.line.shader = "unlitLine"
 
-    def image(self, meshes, lines, line_width, target, eye, up, half, near, far):
-        import open3d as o3d
+    def image(self, meshes, lines, line_width, frame):
+        """(size, size, 3) uint8: ``meshes`` (``(V, F, rgb)``, V relative to ``frame.target``) and
+        ``lines`` (``(segments (m, 2, 3), rgb (m, 3))`` or None), ``line_width`` pixels wide."""
+        n = self.size
+        img = np.ones((n, n, 3), np.float32)
+        depth = np.full((n, n), -np.inf)
+        scale = n / (2 * frame.half)
 
-        R = o3d.visualization.rendering
-        with lock:
-            scene = self.r.scene
-            scene.clear_geometry()
-            for i, m in enumerate(meshes):
-                scene.add_geometry(f"mesh{i}", m, self.surface)
-            if lines is not None:
-                self.line.line_width = float(line_width)
-                scene.add_geometry("lines", lines, self.line)
-            scene.camera.set_projection(R.Camera.Projection.Ortho, -half, half, -half, half, near, far)
-            scene.camera.look_at(target, eye, up)
-            img = np.asarray(self.r.render_to_image()).copy()
-            scene.clear_geometry()
-        return img
+        def pixels(V):
+            V = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+            return np.c_[(V @ frame.right + frame.half) * scale, (frame.half - V @ frame.up) * scale, V @ frame.d]
+
+        for V, F, rgb in meshes:
+            if len(F):
+                _raster.draw(pixels(V), F, rgb, img, depth)
+        if lines is not None and len(lines[0]):
+            S = pixels(lines[0]).reshape(-1, 2, 3)
+            P, F = _raster.segment_quads(S[:, 0], S[:, 1], float(line_width))
+            _raster.draw(P, F, np.repeat(np.asarray(lines[1], dtype=np.float64).reshape(-1, 3), 4, axis=0), img, depth)
+        return np.round(np.clip(img, 0, 1) * 255).astype(np.uint8)
 
 
-def renderer(choice: str) -> Renderer | None:
-    """The renderer to use: a :class:`Renderer`, or None for matplotlib (warning once when "auto"
-    had to fall back)."""
+def renderer(choice: str) -> Raster | None:
+    """The renderer to use: a :class:`Raster`, or None for matplotlib's 3D axes. "auto" follows
+    the environment variable ``O3DHEAT_RENDERER`` (default: the rasterizer)."""
     if choice not in RENDERERS:
-        raise MeshError(f"renderer must be one of {', '.join(RENDERERS)}, got {choice!r}")
+        raise MeshError(f"renderer must be one of {', '.join(RENDERERS[:3])}, got {choice!r}")
     if choice == "auto":
         choice = os.environ.get("O3DHEAT_RENDERER", "auto").strip().lower() or "auto"
         if choice not in RENDERERS:
-            raise MeshError(f"O3DHEAT_RENDERER must be one of {', '.join(RENDERERS)}, got {choice!r}")
-        fallback = choice == "auto"
-    else:
-        fallback = False
-    if choice == "matplotlib":
-        return None
-    with lock:
-        if state["renderer"] is None:
-            ok, reason = probe()
-            if not ok:
-                if not fallback:
-                    raise MeshError(reason + "; or pass renderer='matplotlib'")
-                if not state["warned"]:
-                    warnings.warn(reason + ". Drawing with matplotlib instead (no hidden-surface removal); "
-                                  "set O3DHEAT_RENDERER=matplotlib to choose that without this warning.",
-                                  RuntimeWarning, stacklevel=4)  # the caller of field, fields, tracks
-                    state["warned"] = True
-                return None
-            state["renderer"] = Renderer(RENDER_SIZE)
-        return state["renderer"]
+            raise MeshError(f"O3DHEAT_RENDERER must be one of {', '.join(RENDERERS[:3])}, got {choice!r}")
+    if choice == "open3d":
+        warnings.warn("renderer='open3d' is deprecated: the figures are drawn by o3dheat's own rasterizer "
+                      "(renderer='raster'), which replaced Open3D's offscreen renderer", DeprecationWarning,
+                      stacklevel=4)
+    return None if choice == "matplotlib" else Raster(RENDER_SIZE)
 
 
 # ------------------------------------------------------------------ geometry of a view
@@ -251,23 +154,37 @@ _SPHERE = None
 
 
 def sphere():
+    """``(V, F)`` of a unit sphere (an icosahedron subdivided once, 42 vertices): a marker."""
     global _SPHERE
     if _SPHERE is None:
-        import open3d as o3d
+        t = (1 + 5 ** 0.5) / 2
+        V = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t],
+                      [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], dtype=np.float64)
+        F = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
+                      [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
+                      [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
+        mid = {}
+        points = list(V)
 
-        s = o3d.geometry.TriangleMesh.create_sphere(1.0, 8)
-        _SPHERE = np.asarray(s.vertices), np.asarray(s.triangles)
+        def middle(i, j):
+            key = (min(i, j), max(i, j))
+            if key not in mid:
+                mid[key] = len(points)
+                points.append((V[i] + V[j]) / 2)
+            return mid[key]
+
+        faces = []
+        for a, b, c in F:
+            ab, bc, ca = middle(a, b), middle(b, c), middle(c, a)
+            faces += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+        P = np.array(points)
+        _SPHERE = P / np.linalg.norm(P, axis=1, keepdims=True), np.array(faces, dtype=np.int64)
     return _SPHERE
 
 
 def tmesh(V, F, rgb):
-    import open3d as o3d
-
-    m = o3d.t.geometry.TriangleMesh()  # tensor meshes: Open3D's legacy path is erratically slow here
-    m.vertex.positions = o3d.core.Tensor(np.ascontiguousarray(V, dtype=np.float32))
-    m.triangle.indices = o3d.core.Tensor(np.ascontiguousarray(F, dtype=np.int32))
-    m.vertex.colors = o3d.core.Tensor(np.ascontiguousarray(np.clip(rgb, 0, 1), dtype=np.float32))
-    return m
+    """A mesh for :meth:`Raster.image`: ``(V, F, rgb)`` with colours clipped to [0, 1]."""
+    return (np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64), np.clip(rgb, 0, 1))
 
 
 def tubes(P, radius, rgb, view, sides=6):

@@ -7,14 +7,13 @@ charts of :mod:`o3dheat.visualization.charts` (:func:`scale_space`, :func:`persi
 
 Notes
 -----
-Surfaces are real 3D renders by Open3D's offscreen renderer (headless: software Vulkan, the system
-packages ``libvulkan1`` and ``mesa-vulkan-drivers``), level sets and critical points (maxima red,
-minima blue, saddles green, as in the paper) drawn on the visible surface and hidden behind it,
-with a colorbar named after the field and a legend. Where the renderer cannot start, the
-functions warn once (``RuntimeWarning``) and draw with matplotlib's 3D axes, which cannot hide
-what is behind the surface; ``renderer="matplotlib"`` (or ``O3DHEAT_RENDERER=matplotlib``) picks
-them quietly. Nothing is shown on screen: save a figure with ``fig.savefig("name.png")``. One
-renderer is kept per process: call these functions from one thread at a time. More in
+Surfaces are real 3D renders (hidden surfaces removed) by o3dheat's own rasterizer, which needs
+no display, GPU or driver and gives the same pixels on every run, with level sets (solid black
+lines) and critical points (maxima red, minima blue, saddles green, as in the paper) drawn on the
+visible surface and hidden behind it, a colorbar named after the field and a legend.
+``renderer="matplotlib"`` (or ``O3DHEAT_RENDERER=matplotlib``) draws with matplotlib's 3D axes
+instead, which cannot hide what is behind the surface. Nothing is shown on screen: save a figure
+with ``fig.savefig("name.png")``; :func:`o3dheat.view` makes the interactive page. More in
 ``docs/details/figures.md``; the recipes are in :mod:`o3dheat.visualization.figures`.
 """
 
@@ -206,10 +205,10 @@ def field(mesh: MeshLike, f: FieldLike, level_sets: Levels = 10, critical_points
         The axis drawn vertical (scans often have y up).
     label : str
         The field's name, written on the colorbar.
-    renderer : {"auto", "open3d", "matplotlib"}
-        "auto": Open3D's offscreen renderer, or matplotlib with a warning where it cannot start;
-        "open3d" raises :class:`o3dheat.MeshError <o3dheat.errors.MeshError>` there instead; "matplotlib": 3D axes without
-        hidden-surface removal. "auto" follows the environment variable ``O3DHEAT_RENDERER``.
+    renderer : {"auto", "raster", "matplotlib"}
+        "raster": o3dheat's rasterizer (hidden surfaces removed); "matplotlib": 3D axes without
+        hidden-surface removal; "auto" follows the environment variable ``O3DHEAT_RENDERER``
+        (default "raster"). "open3d" is an old spelling of "raster" (deprecated).
 
     Returns
     -------
@@ -329,7 +328,7 @@ def render(mesh: MeshLike, f: FieldLike, level_sets: Levels = 10, critical_point
     lo, hi = _layout.color_range(f, flat) if vrange is None else (float(vr[0]), float(vr[1]))  # of what is drawn, as field's
     F = _layout.oriented(V, F)
     frame = _render.View(V, view)
-    r = _render.renderer("open3d")
+    r = _render.renderer("raster")
     panel = _panels.Panel(V, F, f, lo, hi, cmap, level_sets, critical_points, S, None, parts)
     return panel.render(r, frame, vertex_normals(V, F))
 

@@ -1,13 +1,9 @@
 """Helpers of the visualization tests: the renderer marker and reading pictures."""
 
 import numpy as np
-import pytest
 from conftest import torus
 
 import o3dheat
-import o3dheat.visualization.plot as plot
-
-needs_renderer = pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
 
 
 def pixels(img, color):

@@ -8,7 +8,6 @@ from pictures import not_blank
 import o3dheat
 import o3dheat.visualization.charts as charts
 import o3dheat.visualization.figures as figures
-import o3dheat.visualization.plot as plot
 
 
 def test_paper_figures_for_a_mesh(tmp_path):
@@ -32,7 +31,6 @@ def test_study_figures(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
 def test_paper_figures_on_the_bunny(tmp_path):
     from o3dheat.io import default_mesh
 
@@ -101,7 +99,6 @@ def panel_report(img):
     return surface.mean(), spread, (markers(img) & surface).sum() / max(surface.sum(), 1), pieces
 
 
-@pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
 @pytest.mark.parametrize("which", ["three parts", "boundary"])
 @pytest.mark.filterwarnings("error:constrained_layout not applied")
 def test_every_recipe_shows_every_panels_surface_readably(tmp_path, monkeypatch, which):
@@ -138,7 +135,6 @@ def test_every_recipe_shows_every_panels_surface_readably(tmp_path, monkeypatch,
     assert panels == 4 * 3 + 4 + 5 + 4 + 3
 
 
-@pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
 def test_titles_count_the_critical_points_drawn(tmp_path, monkeypatch):
     """Fig. 2's ten eigenpairs leave the small parts constant up to rounding: the titles count no
     critical points of rounding errors there (hundreds were counted)."""
@@ -212,7 +208,6 @@ def bunny_like():
         return decimate(sample_mesh("torus"), target_faces=20000).arrays, "z"
 
 
-@pytest.mark.skipif(not plot.renderer_available()[0], reason="no offscreen renderer here")
 @pytest.mark.parametrize("which", ["bunny", "three parts", "boundary"])
 @pytest.mark.filterwarnings("error:constrained_layout not applied")
 def test_track_figures_show_the_surface_and_one_bar_per_track(tmp_path, monkeypatch, which):

@@ -4,7 +4,6 @@ the figure around the panels (the legend fits) (PAPER.md row P16)."""
 import numpy as np
 import pytest
 from conftest import glued_spheres, icosphere
-from pictures import needs_renderer
 
 import o3dheat
 import o3dheat.visualization.plot as plot
@@ -20,12 +19,11 @@ def test_a_non_manifold_scan_is_drawn_repaired_with_a_warning(caplog):
     VV, FF = glued_spheres()
     assert o3dheat.check_mesh((VV, FF)).non_manifold_vertices == 1
     with caplog.at_level("WARNING", logger="o3dheat"):
-        fig = plot.field((VV, FF), VV[:, 2], renderer="matplotlib" if not plot.renderer_available()[0] else "auto")
+        fig = plot.field((VV, FF), VV[:, 2], renderer="auto")
     assert "o3dheat.repair" in caplog.text and "non-manifold" in caplog.text
     assert any(t.startswith("maxima") for t in legend_texts(fig))
 
 
-@needs_renderer
 def test_the_legend_fits_a_narrow_figure():
     V, F = icosphere(3)
     V = V * [0.2, 0.2, 1.0]  # tall and thin: a narrow single figure
@@ -42,7 +40,7 @@ def _sphere():
     return m.vertex.positions.numpy().astype(float), m.triangle.indices.numpy().astype(np.int64)
 
 
-@pytest.mark.parametrize("renderer", ["matplotlib", pytest.param("open3d", marks=needs_renderer)])
+@pytest.mark.parametrize("renderer", ["matplotlib", "raster"])
 def test_the_picture_does_not_depend_on_the_winding(renderer, tmp_path):
     """Inward faces (common in OBJ/STL exports) or a mix of both windings draw the same picture:
     the normals that shade, lift the level sets and hide the back are taken after orienting."""

@@ -4,7 +4,7 @@ constant to them, markers sized per part, the colour range of the part holding t
 
 import numpy as np
 from conftest import icosphere
-from pictures import needs_renderer, pixels
+from pictures import pixels
 
 import o3dheat
 import o3dheat.visualization._panels as _panels
@@ -19,7 +19,6 @@ def legend_texts(fig):
     return [t.get_text() for lg in fig.legends for t in lg.get_texts()]
 
 
-@needs_renderer
 def test_too_many_critical_points_are_not_drawn(monkeypatch):
     V, F = icosphere(3)
     f = V[:, 2] + 0.3 * np.random.default_rng(1).standard_normal(len(V))
@@ -36,7 +35,6 @@ def two_spheres(tiny=1.0):
     return np.r_[V, tiny * V + [3.0, 0.0, 0.0]], np.r_[F, F + len(V)], len(V)
 
 
-@needs_renderer
 def test_a_part_constant_to_rounding_gets_no_critical_points():
     """Φ_t(e_i) is exactly 0 on a part without vertex i; computed, it is rounding errors there,
     with hundreds of "critical points" that buried the part under markers. Such a part is drawn
@@ -55,7 +53,6 @@ def test_a_part_constant_to_rounding_gets_no_critical_points():
     assert plot.drawn_critical_points((V, F), g).counts == o3dheat.critical_points((V, F), g).counts
 
 
-@needs_renderer
 def test_markers_on_a_small_part_are_sized_for_it():
     """A part a tenth the size of the other, with a noisy field: its markers cover a bounded
     share of its pixels (they were sized for the whole mesh and hid it)."""
@@ -70,7 +67,6 @@ def test_markers_on_a_small_part_are_sized_for_it():
     assert surface > 0 and marked < 0.15 * surface, (marked, surface)
 
 
-@needs_renderer
 def test_a_small_part_holding_the_variation_gets_the_colours():
     """Φ_t(e_i) of a vertex of a part with 3% of the vertices: the others are constant (0, to the
     eigensolver's mixing of equal eigenvalues, 1e-9 of the field), and the colour range is the

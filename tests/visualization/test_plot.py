@@ -4,7 +4,7 @@ the tracks across scales (PAPER.md row P16)."""
 import numpy as np
 import pytest
 from conftest import icosphere, torus
-from pictures import needs_renderer, not_blank, pixels, torus_tracks
+from pictures import not_blank, pixels, torus_tracks
 
 import o3dheat
 import o3dheat.visualization.plot as plot
@@ -14,7 +14,6 @@ def legend_texts(fig):
     return [t.get_text() for lg in fig.legends for t in lg.get_texts()]
 
 
-@needs_renderer
 def test_field_has_a_named_colorbar_and_a_legend(tmp_path):
     V, F = torus(1.0, 0.4, 40, 20)
     fig = plot.field((V, F), V[:, 0], level_sets=8, title="x on a torus", label="x coordinate")
@@ -32,7 +31,6 @@ def test_field_has_a_named_colorbar_and_a_legend(tmp_path):
     assert not_blank(tmp_path / "g.png")
 
 
-@needs_renderer
 def test_panels_share_a_colorbar_or_have_their_own(tmp_path):
     V, F = icosphere(3)
     f = V[:, 2] + 0.2 * np.random.default_rng(1).standard_normal(len(V))
@@ -76,7 +74,6 @@ def test_style_arguments_are_checked():
             plot.field((V, F), V[:, 0], renderer="matplotlib", **kw)
 
 
-@needs_renderer
 def test_render_checks_its_range():
     V, F = icosphere(1)
     for bad in [(np.nan, 1.0), (1.0, 0.0), "ab", (1.0,)]:
@@ -84,7 +81,6 @@ def test_render_checks_its_range():
             plot.render((V, F), V[:, 0], vrange=bad)
 
 
-@needs_renderer
 def test_tracks_draws_lines_and_end_markers_in_the_kinds_colours(tmp_path):
     mesh, Ft, tr = torus_tracks()
     fig = plot.tracks(mesh, tr, Ft, title="tracks", label="f")

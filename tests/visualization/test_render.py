@@ -1,11 +1,11 @@
-"""The offscreen renderer: what is behind the surface is hidden, every part in frame, far from the
-origin the same picture, the fallback to matplotlib and its warning, a blank render refused
+"""The static figures' renderer: what is behind the surface is hidden, every part in frame, far from the
+origin the same picture, the same pixels every time, matplotlib on purpose, a blank render refused
 (PAPER.md row P16)."""
 
 import numpy as np
 import pytest
 from conftest import icosphere, torus
-from pictures import needs_renderer, not_blank, pixels
+from pictures import pixels
 
 import o3dheat
 import o3dheat.visualization._render as _render
@@ -16,7 +16,6 @@ def ink(img):
     return np.any(img < 250, axis=2)
 
 
-@needs_renderer
 def test_what_is_behind_the_surface_is_hidden():
     """x on a sphere seen from +x: the maximum (+x) shows, the minimum (-x) is behind the sphere;
     seen from -x the other way round. A level set on the far side leaves the picture unchanged."""
@@ -39,7 +38,6 @@ def touches_border(img):
     return m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any()
 
 
-@needs_renderer
 def test_every_part_in_frame():
     """A mesh of two parts far apart, and pymeshlab's airplane (wide wings): everything is in the
     picture, with a margin, and the picture is no larger than the geometry needs."""
@@ -60,7 +58,6 @@ def test_every_part_in_frame():
     assert not touches_border(img) and ink(img).mean() > 0.1
 
 
-@needs_renderer
 def test_a_scan_far_from_the_origin_renders_the_same():
     V, F = icosphere(3)
     near = plot.render((V, F), V[:, 0])
@@ -68,21 +65,56 @@ def test_a_scan_far_from_the_origin_renders_the_same():
     assert near.shape == far.shape and np.abs(near.astype(int) - far).mean() < 1.0
 
 
-def test_fallback_to_matplotlib_warns_and_still_draws(monkeypatch, tmp_path):
+def test_the_old_open3d_spelling_draws_with_the_rasterizer_and_warns():
     V, F = torus(1.0, 0.4, 24, 12)
-    monkeypatch.setitem(_render.state, "probe", (False, _render.MISSING + " (test)"))
-    monkeypatch.setitem(_render.state, "renderer", None)
-    monkeypatch.setitem(_render.state, "warned", False)
-    monkeypatch.delenv("O3DHEAT_RENDERER", raising=False)
-    with pytest.warns(RuntimeWarning, match="libvulkan1 and mesa-vulkan-drivers"):
-        fig = plot.field((V, F), V[:, 0], label="x")
-    assert fig.axes[0].name == "3d" and fig.axes[1].get_ylabel() == "x"
-    fig.savefig(tmp_path / "m.png")
-    assert not_blank(tmp_path / "m.png")
-    with pytest.raises(o3dheat.MeshError, match="renderer='matplotlib'"):
-        plot.field((V, F), V[:, 0], renderer="open3d")
-    with pytest.raises(o3dheat.MeshError, match="mesa-vulkan-drivers"):
-        plot.render((V, F), V[:, 0])
+    with pytest.warns(DeprecationWarning, match="renderer='raster'"):
+        old = plot.field((V, F), V[:, 0], renderer="open3d")
+    assert old.axes[0].name != "3d"
+    with pytest.raises(o3dheat.MeshError, match="renderer must be one of auto, raster, matplotlib"):
+        plot.field((V, F), V[:, 0], renderer="vulkan")
+
+
+def test_the_same_picture_every_time_and_from_threads_at_once():
+    """The cause of the blank frames was the renderer's (Open3D's Filament skipping frames under
+    load); the rasterizer has no frames to skip: the same pixels on every call, also from four
+    threads drawing at once while the machine is busy."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    V, F = icosphere(3)
+    first = plot.render((V, F), V[:, 0] + 0.5 * V[:, 2])
+    with ThreadPoolExecutor(4) as pool:
+        again = list(pool.map(lambda _: plot.render((V, F), V[:, 0] + 0.5 * V[:, 2]), range(8)))
+    assert all(np.array_equal(first, img) for img in again)
+
+
+def test_rasterized_area_is_the_projected_area():
+    """A sphere of radius 1 seen along any axis covers pi r^2 of the picture (to a pixel of its
+    outline), and a square seen face-on exactly its pixels."""
+    from o3dheat.visualization import _raster
+
+    img, depth = np.ones((64, 64, 3), np.float32), np.full((64, 64), -np.inf)
+    P = np.array([[8, 8, 0], [40, 8, 0], [40, 40, 0], [8, 40, 0.0]])
+    _raster.draw(P, np.array([[0, 1, 2], [0, 2, 3]]), np.zeros((4, 3)), img, depth)
+    assert int((img[..., 0] == 0).sum()) == 32 * 32  # no pixel twice, none missed on the diagonal
+    V, F = icosphere(4)
+    for view in [(0, 0), (90, 0), (0, 90), (35, -60)]:
+        img = plot.render((V, F), V[:, 0], level_sets=None, critical_points=False, view=view)
+        inside = ink(img).sum()
+        radius = img.shape[0] / 2 / 1.08  # the frame has a margin of 4% of the width on each side
+        assert abs(inside - np.pi * radius ** 2) < 2 * np.pi * radius * 1.5, view
+
+
+def test_a_nearer_surface_hides_a_farther_one_whatever_the_order():
+    from o3dheat.visualization import _raster
+
+    quad = np.array([[0, 1, 2], [0, 2, 3]])
+    near = np.array([[0, 0, 1.0], [16, 0, 1], [16, 16, 1], [0, 16, 1]])
+    far = near - [0, 0, 2.0]
+    for order in [(near, far), (far, near)]:
+        img, depth = np.ones((16, 16, 3), np.float32), np.full((16, 16), -np.inf)
+        for P, c in zip(order, [0.0, 0.5] if order[0] is near else [0.5, 0.0], strict=True):
+            _raster.draw(P, quad, np.full((4, 3), c), img, depth)
+        assert np.all(img == 0.0)  # the near quad is black
 
 
 def test_matplotlib_on_purpose_is_quiet(monkeypatch, recwarn):
@@ -95,17 +127,15 @@ def test_matplotlib_on_purpose_is_quiet(monkeypatch, recwarn):
         plot.field((V, F), V[:, 0])
 
 
-@needs_renderer
 def test_a_blank_render_is_refused(monkeypatch):
     V, F = icosphere(2)
-    r = _render.renderer("open3d")
     calls = []
 
-    def white(*args):
+    def white(self, *args):
         calls.append(1)
-        return np.full((r.size, r.size, 3), 255, np.uint8)
+        return np.full((self.size, self.size, 3), 255, np.uint8)
 
-    monkeypatch.setattr(r, "image", white)
+    monkeypatch.setattr(_render.Raster, "image", white)
     with pytest.raises(o3dheat.SolverError, match="drew nothing"):
         plot.field((V, F), V[:, 2])
-    assert len(calls) == 2  # drawn again once, then refused
+    assert len(calls) == 1  # no retry: the rasterizer has no frames to skip
