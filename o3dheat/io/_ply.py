@@ -1,14 +1,22 @@
 """The PLY codec (plyfile): :func:`read_ply` and :func:`write_ply`, every vertex attribute kept
-exactly, the header checked against the file size before plyfile allocates anything.
+exactly (colours in 8 bits unless asked otherwise), the header checked against the file size
+before plyfile allocates anything.
 
 Notes
 -----
 PLY layout written here: ``x y z`` in the positions' own float type (float or double),
-``nx ny nz`` (the normals' float type) when there are normals, and colours once, as
-``red green blue``: uchar (what every viewer reads) when they are float32 multiples of 1/255,
-else their exact values as float or double (their own type; other dtypes with a header comment
-``o3dheat colors DTYPE``; files of older versions, which also stored ``o3dheat_colors_0..2``,
-read as before). Any other vertex attribute ``a`` of shape (n,) is a property
+``nx ny nz`` (the normals' float type) when there are normals, and colours as ``uchar red green
+blue``, what every viewer reads (Open3D's readers, MeshLab, trimesh): float colours as
+``round(255 * c)`` of ``c`` clipped to [0, 1] (as Open3D's own writer does; a warning counts the
+colours clipping changed; NaN or infinite colours are refused with a :class:`MeshError`), read
+back as ``k / 255`` (within 1/510 of what was written) in float32, or in float64 for float64
+colours (header comment ``o3dheat colors <f8``); uint8 colours as they are (comment ``o3dheat
+colors |u1``: read back as uint8); other dtypes are refused. With ``lossless_colors=True`` float
+colours that 8 bits do not give back exactly (float32 multiples of 1/255 need nothing more) are
+also stored exactly, as ``o3dheat_colors_0..2`` in their own type with the comment ``o3dheat
+attribute o3dheat_colors 3 DTYPE``, which o3dheat's reader gives back as ``colors``. Files of
+earlier versions, with ``float``/``double`` or other ``red green blue`` (read as they are), read as
+before. Any other vertex attribute ``a`` of shape (n,) is a property
 ``a``; of shape (n, c) or (n, a, b...) it is ``a_0 .. a_{c-1}`` (row-major) with a header comment
 ``o3dheat attribute a C DTYPE [shape=(a,b)]`` (C the number of columns, DTYPE the numpy dtype,
 ``shape=`` only when the trailing shape is not (C,); ``shape=()`` marks a one-column attribute
@@ -115,9 +123,38 @@ def _float_xyz(key, arr, path):
     return arr
 
 
-def _ply_vertex_table(attrs, path):
+def _ply_colors(C, path, lossless):
+    """(the (n, 3) uint8 ``red green blue``, the header comment giving their dtype back or None,
+    the exact copy to store as ``o3dheat_colors_0..2`` or None) of colours ``C``, or MeshError
+    (the rules in the module's Notes)."""
+    if C.ndim != 2 or C.shape[1] != 3:
+        raise MeshError(f"cannot write {path}: colors must have shape (n, 3), got {C.shape}: use .npz")
+    if C.dtype == np.uint8:
+        return C, f"{_RAW_COLORS} {C.dtype.str}", None
+    if _code(C.dtype) not in ("f4", "f8"):
+        raise MeshError(f"cannot write {path}: colors of dtype {C.dtype}: PLY stores colours as 8-bit red green "
+                        f"blue: give float colours in [0, 1] or uint8 (or rename the attribute to keep its values)")
+    bad = ~np.isfinite(C).all(axis=1)
+    if bad.any():
+        raise MeshError(f"cannot write {path}: {int(bad.sum())} of {len(C)} vertex colours NaN or infinite (the "
+                        f"first at vertex {int(np.flatnonzero(bad)[0])}): PLY stores colours as 8-bit red green blue "
+                        f"in [0, 1]: fix them, or rename the attribute to keep its values")
+    scaled = np.asarray(C, dtype=np.float64) * 255
+    clipped = ((scaled < -0.5) | (scaled >= 255.5)).any(axis=1)  # where clipping changes the byte
+    if clipped.any():
+        log.warning("%s: %d of %d vertex colours outside [0, 1] (from %g to %g) clipped to [0, 1] in the 8-bit "
+                    "red green blue%s", path, int(clipped.sum()), len(C), float(C.min()), float(C.max()),
+                    " (the exact values are kept in o3dheat_colors_*)" if lossless else "")
+    u8 = np.floor(np.clip(scaled, 0, 255) + 0.5).astype(np.uint8)  # halves up, as Open3D's std::round
+    exact = np.array_equal((u8 / 255.0).astype(C.dtype), C)
+    comment = None if C.dtype == np.float32 else f"{_RAW_COLORS} {C.dtype.str}"
+    return u8, comment, (C if lossless and not exact else None)
+
+
+def _ply_vertex_table(attrs, path, lossless_colors=False):
     """(fields [(property, dtype str)], columns, header comments) of the PLY vertex element, or
-    MeshError (naming the attribute and why) for any attribute PLY cannot give back exactly."""
+    MeshError (naming the attribute and why) for any attribute PLY cannot give back exactly
+    (colours: 8 bits, and exactly with ``lossless_colors``)."""
     V = _float_xyz("positions", attrs["positions"], path)
     fields = [(c, V.dtype.str) for c in "xyz"]
     cols = [V[:, 0], V[:, 1], V[:, 2]]
@@ -138,19 +175,13 @@ def _ply_vertex_table(attrs, path):
         N = _float_xyz("normals", attrs["normals"], path)
         add("normals", ["nx", "ny", "nz"], [N[:, 0], N[:, 1], N[:, 2]])
     if "colors" in attrs:
-        C = attrs["colors"]
-        if C.ndim != 2 or C.shape[1] != 3:
-            raise MeshError(f"cannot write {path}: colors must have shape (n, 3), got {C.shape}: use .npz")
-        # stored once, as red green blue: uchar when that is exact (float32 multiples of 1/255,
-        # what every viewer reads), else the float values themselves (float or double); other
-        # dtypes as their values with a header comment giving the dtype back
-        if _code(C.dtype) in ("f4", "f8"):
-            u8 = np.clip(np.round(np.asarray(C, dtype=np.float64) * 255), 0, 255).astype(np.uint8)
-            S = u8 if C.dtype == np.float32 and np.array_equal((u8 / 255.0).astype(C.dtype), C) else C
-        else:
-            S = _ply_storable("colors", C, path)
-            comments.append(f"{_RAW_COLORS} {C.dtype.str}")
-        add("colors", ["red", "green", "blue"], [S[:, 0], S[:, 1], S[:, 2]])
+        u8, comment, copy = _ply_colors(attrs["colors"], path, lossless_colors)
+        add("colors", ["red", "green", "blue"], [u8[:, 0], u8[:, 1], u8[:, 2]])
+        if comment:
+            comments.append(comment)
+        if copy is not None:  # lossless_colors: the exact values beside the 8-bit ones
+            add("colors", [f"{_COLORS_KEY}_{j}" for j in range(3)], [copy[:, 0], copy[:, 1], copy[:, 2]])
+            comments.append(f"o3dheat attribute {_COLORS_KEY} 3 {copy.dtype.str}")
     for key, arr in attrs.items():
         if key in RESERVED:
             continue
@@ -178,11 +209,12 @@ def _ply_vertex_table(attrs, path):
     return fields, cols, comments
 
 
-def write_ply(path, attrs, F, binary):
+def write_ply(path, attrs, F, binary, lossless_colors=False):
     """Write positions, faces (or None) and attributes to ``path`` atomically, binary (little-endian)
-    or ASCII; MeshError, before anything is written, for an attribute PLY cannot give back exactly."""
+    or ASCII, colours as 8-bit ``red green blue`` (plus their exact copy with ``lossless_colors``);
+    MeshError, before anything is written, for an attribute PLY cannot give back exactly."""
     n = len(attrs["positions"])
-    fields, cols, comments = _ply_vertex_table(attrs, path)
+    fields, cols, comments = _ply_vertex_table(attrs, path, lossless_colors)
     try:
         vert = np.empty(n, dtype=[(nm, np.dtype(dt).newbyteorder("<").str) for nm, dt in fields])
         for (nm, _), col in zip(fields, cols, strict=True):
@@ -463,13 +495,18 @@ def _read_commented(comment, vert, names, attrs, used, path):
 
 def _read_colors(comments, vert, path):
     """The colours of ``red green blue``: the dtype a header comment ``o3dheat colors DTYPE``
-    gives back, float values as they are, integers scaled to [0, 1] (float32)."""
+    gives back (uint8 as they are, a float dtype the 8-bit values / 255 in it), float values as
+    they are, integers scaled to [0, 1] (float32)."""
     rgb = np.stack([vert["red"], vert["green"], vert["blue"]], 1)
     raw = [c.split()[2] for c in comments if c.startswith(_RAW_COLORS + " ") and len(c.split()) == 3]
     restored = None
     if raw:
         try:
-            restored = _restore(rgb, np.dtype(raw[-1]))
+            dtype = np.dtype(raw[-1])
+            if rgb.dtype == np.uint8 and _code(dtype) in ("f4", "f8"):
+                restored = (rgb / 255.0).astype(dtype.newbyteorder("="))
+            else:
+                restored = _restore(rgb, dtype)
         except TypeError:
             restored = None
         if restored is None:

@@ -3,8 +3,9 @@
 
 Notes
 -----
-Formats: PLY (binary by default, every vertex attribute kept exactly: ``o3dheat.io._ply``)
-through plyfile, ``.npz`` (numpy: ``o3dheat.io._npz``), and for reading only OBJ and STL by
+Formats: PLY (binary by default, every vertex attribute kept exactly but colours, stored as 8-bit
+``red green blue`` unless ``lossless_colors=True``: ``o3dheat.io._ply``) through plyfile,
+``.npz`` (numpy, everything exact: ``o3dheat.io._npz``), and for reading only OBJ and STL by
 o3dheat's own readers (OBJ: the file's vertices in the file's order, texture coordinates on the
 triangles: ``o3dheat.io._obj``; STL: binary or ASCII, a truncated or malformed file refused with
 the facet and line: ``o3dheat.io._stl``), and every other format Open3D reads (OFF, GLB, PCD,
@@ -35,7 +36,7 @@ __all__ = ["read_mesh", "write_mesh", "read_geometry", "write_geometry", "READER
 
 
 def write_mesh(path: PathLike, mesh: o3d.t.geometry.TriangleMesh | o3d.geometry.TriangleMesh, binary: bool = True,
-               overwrite: bool = True) -> None:
+               overwrite: bool = True, lossless_colors: bool = False) -> None:
     """Write a mesh and all its vertex attributes to a PLY or ``.npz`` file, atomically.
 
     Parameters
@@ -48,8 +49,13 @@ def write_mesh(path: PathLike, mesh: o3d.t.geometry.TriangleMesh | o3d.geometry.
     binary : bool
         PLY only: binary little-endian (default) or ASCII.
     overwrite : bool
-        False refuses to replace an existing file. (Both must be bools: ``binary="no"`` is a
-        MeshError, not a binary file.)
+        False refuses to replace an existing file.
+    lossless_colors : bool
+        PLY only. False (default): colours are stored as 8-bit ``uchar red green blue``, what
+        every viewer reads, and read back within 1/510. True: float colours that 8 bits do not give
+        back exactly are also stored exactly (``o3dheat_colors_0..2``, which other tools show as
+        extra properties), and :func:`read_mesh` gives them back bit for bit. (All three flags must
+        be bools: ``binary="no"`` is a MeshError, not a binary file.)
 
     Raises
     ------
@@ -57,25 +63,44 @@ def write_mesh(path: PathLike, mesh: o3d.t.geometry.TriangleMesh | o3d.geometry.
         Wrong extension, no triangles, an attribute of the wrong length, an existing file with
         ``overwrite=False``, a folder that does not exist, face indices outside the vertices or
         int32, or (PLY) an attribute PLY cannot give back exactly (the layout in the docstring of
-        ``o3dheat.io._ply``): raised before anything is written.
+        ``o3dheat.io._ply``), NaN or infinite colours, or colours neither float nor uint8: raised
+        before anything is written.
     OSError
         The file system's own error (an unwritable folder, a full disk). The target is never left
         half-written.
 
+    Notes
+    -----
+    Every vertex attribute comes back exactly (dtype, shape and bits) from :func:`read_mesh`,
+    but for colours in PLY: float colours ``c`` are written as ``round(255 * c)`` of ``c`` clipped
+    to [0, 1] (a warning says how many colours clipping changed; as Open3D's own writer does) and
+    read back as ``k / 255`` in their float type; uint8 colours are written and read back as they
+    are. Open3D's readers (``o3d.io.read_triangle_mesh``, ``o3d.t.io.read_triangle_mesh``), MeshLab,
+    trimesh and plyfile read the same 8-bit colours. ``lossless_colors=True`` adds the exact copy;
+    ``.npz`` is always exact.
+
     Examples
     --------
-    >>> import tempfile, os, open3d as o3d, o3dheat.io as io
+    >>> import tempfile, os, numpy as np, open3d as o3d, o3dheat.io as io
     >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8)
     >>> p = os.path.join(tempfile.mkdtemp(), "s.ply")
     >>> io.write_mesh(p, m); len(io.read_mesh(p).vertex.positions)
     114
+    >>> m.vertex.colors = o3d.core.Tensor(np.full((114, 3), 0.3, np.float32))
+    >>> io.write_mesh(p, m)                          # 8-bit red green blue: round(0.3 * 255) = 77
+    >>> round(float(io.read_mesh(p).vertex.colors.numpy()[0, 0]) * 255, 4)
+    77.0
+    >>> io.write_mesh(p, m, lossless_colors=True)    # plus the exact float32 values
+    >>> bool(io.read_mesh(p).vertex.colors.numpy()[0, 0] == np.float32(0.3))
+    True
     """
-    _write(path, *attributes(mesh, need_faces=True), binary=binary, overwrite=overwrite)
+    _write(path, *attributes(mesh, need_faces=True), binary=binary, overwrite=overwrite,
+           lossless_colors=lossless_colors)
 
 
 def write_geometry(path: PathLike, geometry: o3d.t.geometry.TriangleMesh | o3d.t.geometry.PointCloud
                    | o3d.geometry.TriangleMesh | o3d.geometry.PointCloud, binary: bool = True,
-                   overwrite: bool = True) -> None:
+                   overwrite: bool = True, lossless_colors: bool = False) -> None:
     """Like :func:`write_mesh` for a mesh or a point cloud (a PLY or ``.npz`` without faces).
 
     Examples
@@ -86,11 +111,12 @@ def write_geometry(path: PathLike, geometry: o3d.t.geometry.TriangleMesh | o3d.t
     >>> type(io.read_geometry(p)).__name__
     'PointCloud'
     """
-    _write(path, *attributes(geometry, need_faces=False), binary=binary, overwrite=overwrite)
+    _write(path, *attributes(geometry, need_faces=False), binary=binary, overwrite=overwrite,
+           lossless_colors=lossless_colors)
 
 
-def _write(path, attrs, F, binary, overwrite):
-    for name, flag in (("binary", binary), ("overwrite", overwrite)):
+def _write(path, attrs, F, binary, overwrite, lossless_colors=False):
+    for name, flag in (("binary", binary), ("overwrite", overwrite), ("lossless_colors", lossless_colors)):
         if not isinstance(flag, (bool, np.bool_)):
             raise MeshError(f"{name} must be True or False, got {flag!r} ({type(flag).__name__})")
     path = Path(path)
@@ -104,7 +130,9 @@ def _write(path, attrs, F, binary, overwrite):
     if F is not None and F.size and (F.min() < 0 or F.max() >= min(n, 2 ** 31)):
         raise MeshError(f"cannot write {path}: face indices outside [0, {min(n, 2 ** 31) - 1}] "
                         f"(the vertices, and PLY's int32 indices)")
-    WRITERS[suffix](path, attrs, F, binary)
+    # colours: only PLY stores them lossy (8 bits) by default; the other writers keep them exactly
+    options = {"lossless_colors": bool(lossless_colors)} if suffix == ".ply" else {}
+    WRITERS[suffix](path, attrs, F, binary, **options)
 
 
 def read_mesh(path: PathLike) -> o3d.t.geometry.TriangleMesh:
@@ -208,5 +236,6 @@ READERS = {".ply": read_ply, ".npz": read_npz, ".stl": read_stl, ".obj": read_ob
 
 
 #: suffix -> writer (path, attributes, faces or None, binary): what o3dheat writes, every attribute
-#: kept (:func:`write_mesh`, :func:`write_geometry`; batch outputs).
+#: kept (:func:`write_mesh`, :func:`write_geometry`; batch outputs); the PLY writer also takes
+#: ``lossless_colors=`` (the only lossy storage: colours in 8 bits by default).
 WRITERS = {".ply": write_ply, ".npz": write_npz}

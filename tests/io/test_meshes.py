@@ -25,7 +25,7 @@ def mesh():
 @pytest.mark.parametrize("binary", [True, False])
 def test_round_trip_is_exact(tmp_path, mesh, binary):
     p = tmp_path / "m.ply"
-    write_mesh(p, mesh, binary=binary)
+    write_mesh(p, mesh, binary=binary, lossless_colors=True)  # colours too (8 bits by default)
     back = read_mesh(p)
     for key in mesh.vertex:
         a, b = mesh.vertex[key].numpy(), back.vertex[key].numpy()
@@ -316,10 +316,13 @@ def _refusal_cases(n):
         ({"empty": np.zeros((n, 0))}, "'empty'.*no column"),
         ({"normals": np.zeros((n, 3), np.int32)}, "normals.*float"),
         ({"colors": np.zeros((n, 4))}, "colors.*\\(n, 3\\)"),
+        ({"colors": np.where(np.arange(3 * n).reshape(n, 3) == 7, np.nan, 0.5)},
+         "1 of 26 vertex colours NaN or infinite \\(the first at vertex 2\\)"),
+        ({"colors": np.zeros((n, 3), np.int16)}, "colors of dtype int16.*float colours in \\[0, 1\\] or uint8"),
     ]
 
 
-@pytest.mark.parametrize("case", range(16))
+@pytest.mark.parametrize("case", range(18))
 def test_unstorable_attributes_are_refused_before_writing(tmp_path, case):
     m = _sphere()
     attrs, match = _refusal_cases(len(m.vertex.positions))[case]
@@ -485,11 +488,12 @@ def test_written_ply_uses_only_types_every_reader_reads(tmp_path, binary):
     from plyfile import PlyData
     m = _foreign_mesh()
     p = tmp_path / "m.ply"
-    write_mesh(p, m, binary=binary)
+    write_mesh(p, m, binary=binary, lossless_colors=True)
     types = {prop.name: str(prop).split()[1] for prop in PlyData.read(str(p))["vertex"].properties}
     assert set(types.values()) <= {"uchar", "int", "float", "double"}, types
     assert types["crit"] == types["i16"] == types["u16"] == "int" and types["flag"] == "uchar"
-    assert types["u32"] == types["big"] == "double" and types["red"] == "float"  # colours not k/255
+    assert types["u32"] == types["big"] == "double" and types["red"] == "uchar"  # colours not k/255:
+    assert types["o3dheat_colors_0"] == "float"  # their exact copy, asked for
     _assert_exact(m.vertex, read_mesh(p).vertex)  # o3dheat's own reader: still exact
 
 
@@ -871,37 +875,43 @@ def test_ply_float_face_indices_must_be_integers(tmp_path, binary):
 
 @pytest.mark.parametrize("value", ["no", "False", 0, 1, None, np.array([True])])
 def test_flags_must_be_bools(tmp_path, mesh, value):
-    for kw in ("binary", "overwrite"):
+    for kw in ("binary", "overwrite", "lossless_colors"):
         with pytest.raises(o3dheat.MeshError, match=f"{kw} must be True or False"):
             write_mesh(tmp_path / "m.ply", mesh, **{kw: value})
     assert not list(tmp_path.iterdir())
     write_mesh(tmp_path / "m.ply", mesh, binary=np.bool_(False))
 
 
-@pytest.mark.parametrize("colors,stored", [
-    (np.array([[0, 1, 2], [255, 128, 7]] * 21, np.float32)[:42] / np.float32(255), "uchar"),
+@pytest.mark.parametrize("colors,copy", [
+    (np.array([[0, 1, 2], [255, 128, 7]] * 21, np.float32)[:42] / np.float32(255), None),  # exact in 8 bits
     (np.random.default_rng(2).random((42, 3)).astype(np.float32), "float"),
     (np.random.default_rng(3).random((42, 3)), "double"),
-    (np.random.default_rng(4).integers(0, 256, (42, 3)).astype(np.uint8), "uchar"),
+    (np.random.default_rng(4).integers(0, 256, (42, 3)).astype(np.uint8), None),
 ])
+@pytest.mark.parametrize("lossless", [False, True])
 @pytest.mark.parametrize("binary", [True, False])
-def test_colours_are_stored_once(tmp_path, colors, stored, binary):
-    """Colours that were not multiples of 1/255 were stored twice: red green blue and o3dheat_colors_*."""
+def test_colours_are_stored_once_in_8_bits(tmp_path, colors, copy, lossless, binary):
+    """Colours are uchar red green blue (issue 29: float ones were stored as float or double,
+    which Open3D's mesh readers showed black and MeshLab white); their exact copy only with
+    lossless_colors and only where 8 bits lose something (it was once written in every file)."""
     from plyfile import PlyData
 
     m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 5)  # 42 vertices
     m.vertex.colors = o3d.core.Tensor(colors)
-    write_mesh(tmp_path / "c.ply", m, binary=binary)
+    write_mesh(tmp_path / "c.ply", m, binary=binary, lossless_colors=lossless)
     props = {p.name: str(p).split()[1] for p in PlyData.read(str(tmp_path / "c.ply"))["vertex"].properties}
-    assert sorted(props) == ["blue", "green", "red", "x", "y", "z"] and props["red"] == stored
+    extra = [f"o3dheat_colors_{j}" for j in range(3)] if lossless and copy else []
+    assert sorted(props) == sorted(["blue", "green", "red", "x", "y", "z"] + extra)
+    assert [props[c] for c in ("red", "green", "blue")] == ["uchar"] * 3 and {props[k] for k in extra} <= {copy}
     back = read_mesh(tmp_path / "c.ply").vertex.colors.numpy()
     assert back.dtype == colors.dtype
-    np.testing.assert_array_equal(back, colors)
-    if stored in ("uchar", "float"):  # what other readers see: the colour in [0, 1]
-        pc = o3d.t.io.read_point_cloud(str(tmp_path / "c.ply")).point.colors.numpy()
-        if colors.dtype == np.float32:
-            np.testing.assert_allclose(pc.astype(np.float64) / (255.0 if stored == "uchar" else 1.0), colors,
-                                       atol=1e-7)
+    if lossless or copy is None:
+        np.testing.assert_array_equal(back, colors)
+    else:
+        np.testing.assert_allclose(back, colors, rtol=0, atol=0.5 / 255 + 1e-7)
+    u8 = colors if colors.dtype == np.uint8 else np.round(colors.astype(np.float64) * 255).astype(np.uint8)
+    pc = o3d.t.io.read_point_cloud(str(tmp_path / "c.ply")).point.colors.numpy()  # what other readers see
+    np.testing.assert_array_equal(pc, u8)
 
 
 def test_formats_are_one_table_that_reading_and_batches_follow(tmp_path, monkeypatch):
@@ -948,3 +958,132 @@ def test_a_folder_given_as_a_file_is_named_a_folder_not_a_missing_file(tmp_path)
         with pytest.raises(MeshError, match="folder") as info:
             call()
         assert not isinstance(info.value, FileNotFoundError)
+
+
+# ------------------------------------------------ colours for every viewer (issue 29)
+
+def _colorized(source):
+    """The colorize filter's output on a generated sphere or on one of pymeshlab's sample PLYs
+    (colored_airplane.ply coloured anew by its quality, replacing its 8-bit colours; bone.ply by
+    height), with a multi-column float64 field beside the colours."""
+    import o3dheat.pipelines.filters as flt
+
+    if source == "sphere":
+        m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
+    else:
+        m = read_mesh(_sample(source))
+    attribute = "quality" if "quality" in m.vertex else "height"
+    if attribute == "height":
+        m = flt.apply(m, "scalar", kind="height")
+    m = flt.apply(m, "colorize", attribute=attribute)
+    n = len(m.vertex.positions)
+    m.vertex["f_smooth"] = o3d.core.Tensor(np.random.default_rng(5).standard_normal((n, 4)))
+    return m
+
+
+_SOURCES = ["sphere", "colored_airplane.ply", "bone.ply"]
+
+
+_TOL = 0.5 / 255 + 1e-6  # 8 bits: half a step (and float32 rounding)
+
+
+@pytest.mark.parametrize("source", _SOURCES)
+@pytest.mark.parametrize("binary", [True, False])
+def test_colorized_ply_has_8_bit_colours_for_every_reader(tmp_path, source, binary):
+    """Issue 29: colorize's colours were written as float red green blue, which Open3D's mesh
+    readers showed black (at most 1/255) and MeshLab white. Now uchar, read the same by Open3D
+    (legacy and tensor), plyfile, o3dheat, trimesh and MeshLab; every other attribute still exact."""
+    m = _colorized(source)
+    C = m.vertex.colors.numpy()
+    assert C.dtype == np.float32 and 0 <= C.min() and C.max() <= 1  # what colorize writes
+    p = tmp_path / "c.ply"
+    write_mesh(p, m, binary=binary)
+    header = p.read_bytes().split(b"end_header")[0]
+    assert b"property uchar red\nproperty uchar green\nproperty uchar blue\n" in header
+    assert b"o3dheat_colors" not in header  # no float copy unless asked for
+    legacy = o3d.io.read_triangle_mesh(str(p))
+    np.testing.assert_allclose(np.asarray(legacy.vertex_colors), C, rtol=0, atol=_TOL)
+    tensor = o3d.t.io.read_triangle_mesh(str(p)).vertex.colors.numpy()
+    np.testing.assert_allclose(tensor, C, rtol=0, atol=_TOL)
+    from plyfile import PlyData
+    vert = PlyData.read(str(p))["vertex"].data
+    rgb = np.stack([vert["red"], vert["green"], vert["blue"]], 1)
+    assert rgb.dtype == np.uint8
+    np.testing.assert_array_equal(rgb, np.round(C.astype(np.float64) * 255))
+    back = read_mesh(p)
+    assert back.vertex.colors.numpy().dtype == np.float32
+    np.testing.assert_allclose(back.vertex.colors.numpy(), C, rtol=0, atol=_TOL)
+    others = [k for k in m.vertex if k != "colors"]
+    assert "f_smooth" in others and sorted(back.vertex) == sorted(m.vertex)
+    _assert_exact({k: m.vertex[k] for k in others}, {k: back.vertex[k] for k in others})
+    import pymeshlab  # MeshLab showed the float colours white
+
+    ms = pymeshlab.MeshSet()
+    ms.load_new_mesh(str(p))
+    np.testing.assert_array_equal(ms.current_mesh().vertex_color_matrix()[:, :3], rgb / 255)
+    trimesh = pytest.importorskip("trimesh")
+    t = trimesh.load(str(p), process=False)
+    np.testing.assert_array_equal(t.visual.vertex_colors[:, :3], rgb)
+    np.testing.assert_allclose(t.visual.vertex_colors[:, :3] / 255, C, rtol=0, atol=_TOL)
+
+
+@pytest.mark.parametrize("source", _SOURCES)
+@pytest.mark.parametrize("binary", [True, False])
+def test_lossless_colours_round_trip_exactly_beside_the_8_bits(tmp_path, source, binary):
+    m = _colorized(source)
+    p = tmp_path / "c.ply"
+    write_mesh(p, m, binary=binary, lossless_colors=True)
+    header = p.read_bytes().split(b"end_header")[0]
+    assert b"property uchar red\n" in header and b"property float o3dheat_colors_0\n" in header
+    _assert_exact(m.vertex, read_mesh(p).vertex)  # colours bit for bit too
+    legacy = o3d.io.read_triangle_mesh(str(p))  # viewers still read the 8-bit colours
+    np.testing.assert_allclose(np.asarray(legacy.vertex_colors), m.vertex.colors.numpy(), rtol=0, atol=_TOL)
+
+
+def test_8_bit_colours_of_a_file_come_back_byte_for_byte(tmp_path):
+    """colored_airplane.ply's uchar colours, read and written again: the same bytes (no copy
+    needed, lossless or not), and read back exactly."""
+    from plyfile import PlyData
+
+    src = _sample("colored_airplane.ply")
+    m = read_mesh(src)
+    for lossless in (False, True):
+        write_mesh(tmp_path / "a.ply", m, lossless_colors=lossless)
+        a, b = PlyData.read(str(src))["vertex"].data, PlyData.read(str(tmp_path / "a.ply"))["vertex"].data
+        assert "o3dheat_colors_0" not in b.dtype.names
+        for c in ("red", "green", "blue", "alpha"):
+            assert b[c].dtype == np.uint8
+            np.testing.assert_array_equal(a[c], b[c])
+        _assert_exact(m.vertex, read_mesh(tmp_path / "a.ply").vertex)
+
+
+def test_colours_outside_0_1_are_clipped_as_open3d_writes_them(tmp_path, caplog):
+    """Out of [0, 1]: clipped, with a warning counting the colours clipping changed; the bytes
+    are those of Open3D's own writer (round(255 * c) of c clipped)."""
+    import logging
+
+    from plyfile import PlyData
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)
+    n = len(m.vertex.positions)
+    C = np.random.default_rng(6).uniform(-0.5, 1.5, (n, 3)).astype(np.float32)
+    C[:4] = [[0, 1, 0.5 / 255], [1.5 / 255, 2.5 / 255, 1], [-1 / 600, 1 + 1 / 600, 0.5], [1e-9, 0.9999, 0]]
+    m.vertex.colors = o3d.core.Tensor(C)
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        write_mesh(tmp_path / "ours.ply", m)
+    out = ((C.astype(np.float64) * 255 < -0.5) | (C.astype(np.float64) * 255 >= 255.5)).any(axis=1)
+    assert f"{int(out.sum())} of {n} vertex colours outside [0, 1]" in caplog.text and 0 < out.sum() < n
+    legacy = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(m.vertex.positions.numpy().astype(np.float64)),
+                                       o3d.utility.Vector3iVector(m.triangle.indices.numpy()))
+    legacy.vertex_colors = o3d.utility.Vector3dVector(C.astype(np.float64))
+    o3d.io.write_triangle_mesh(str(tmp_path / "open3d.ply"), legacy)
+    ours, theirs = (PlyData.read(str(tmp_path / f))["vertex"].data for f in ("ours.ply", "open3d.ply"))
+    for c in ("red", "green", "blue"):
+        np.testing.assert_array_equal(ours[c], theirs[c])
+    back = read_mesh(tmp_path / "ours.ply").vertex.colors.numpy()
+    np.testing.assert_allclose(back, np.clip(C, 0, 1), rtol=0, atol=_TOL)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        write_mesh(tmp_path / "exact.ply", m, lossless_colors=True)  # the copy keeps them
+    assert "kept in o3dheat_colors_*" in caplog.text
+    np.testing.assert_array_equal(read_mesh(tmp_path / "exact.ply").vertex.colors.numpy(), C)
