@@ -1,5 +1,5 @@
 """The ``o3dheat`` command: ``info``, ``repair``, ``filters``, ``apply``, ``batch``, ``spectrum``, ``figure``,
-``study``, ``demo``.
+``view``, ``study``, ``demo``.
 
 User errors (missing files, unknown filters or parameters, bad values, an output in a folder
 that does not exist) print one line starting with ``o3dheat: error:`` and exit with status 2; no
@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import o3dheat
-from o3dheat import demo, geometry, io
+from o3dheat import _cli_pictures, demo, geometry, io
 from o3dheat._outputs import check_folder, check_output, output_folder, same_file
 from o3dheat.errors import MeshError, SolverError
 from o3dheat.pipelines import batch, study
@@ -93,10 +93,19 @@ study.toml:
 An interrupted study resumes: run the same command again.""",
     "figure": """examples:
   o3dheat figure mesh.ply -o figures/                 # noisy height field, the paper's figure kinds
-  o3dheat figure mesh.ply -o figures/ --attribute f -k 100 --up y   # a scan with y up
+  o3dheat figure mesh.stl -o figures/ --attribute f -k 100 --up y   # a y-up scan in an STL file
   o3dheat figure out.ply -o figures/ --attribute hks --column 4      # one column of an (n, c) attribute
 
-The folder is created (with its parents) before any computation.""",
+The folder is created (with its parents) before any computation. Up: y for .obj/.ply/.off/.gltf/.glb
+files, z for the others (stated in index.md; --up overrides). Progress goes to stderr.""",
+    "view": """examples:
+  o3dheat view mesh.ply -o view.html                   # noisy height, exact heat flow, 20 + 10 scales
+  o3dheat view demo.ply -o view.html                   # every (n, T) attribute (f_smooth, f_exact, hks)
+  o3dheat view mesh.ply -o view.html --attribute f --method spectral -k 200
+  o3dheat view scan.ply -o view.html --max-faces none --times 0.001+0.01+0.1
+
+One self-contained HTML file: no request leaves it (three.js is inlined); open it from disk.
+In the page: drag to orbit, right-drag to pan, wheel to zoom; a slider and a play button over t.""",
 }
 
 
@@ -196,21 +205,6 @@ def _study_arguments(p):
     p.add_argument("config", help="study TOML file")
     p.add_argument("--out", required=True, help="output folder, created (tasks/, study.csv, plots)")
     p.add_argument("--scheduler", help="'sequential', or a Dask scheduler address (default: a local cluster)")
-
-
-def _figure_arguments(p):
-    """The arguments of ``o3dheat figure``."""
-    p.add_argument("input", help="mesh file")
-    p.add_argument("-o", "--out", required=True, help="output folder (created)")
-    p.add_argument("--attribute", help="vertex attribute to study (default: height + noise)")
-    p.add_argument("--column", type=int, metavar="N",
-                   help="the column of a multi-column --attribute (0-based, -1 the last); needed when it has "
-                        "several")
-    p.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
-    p.add_argument("--noise", type=float, default=0.1, help="noise added to the height, relative (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
-    p.add_argument("--up", default="z", choices=["x", "y", "z"], help="axis drawn vertical (default: %(default)s)")
-    p.add_argument("--overwrite", action="store_true", help="allow replacing the figures of an earlier run")
 
 
 def _parser():
@@ -381,34 +375,6 @@ def _spectrum(args):
           f"{s.eigenvalues[-1]:.4g}], max residual {s.residuals.max():.1e} ({s.backend})")
 
 
-def _figure(args):
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise MeshError(f"{out} is a file: -o takes a folder")
-    if (out / "index.md").exists() and not args.overwrite:
-        raise MeshError(f"{out} holds the figures of an earlier run: add --overwrite to replace them, or "
-                        "choose another folder")
-    if args.column is not None and not args.attribute:
-        raise MeshError("--column picks a column of --attribute: give --attribute too")
-    mesh = io.read_mesh(args.input)
-    field = None
-    if args.attribute:
-        if args.attribute not in mesh.vertex:
-            raise MeshError(f"no vertex attribute {args.attribute!r}; the mesh has: "
-                            f"{', '.join(k for k in mesh.vertex)}")
-        field = flt.one_column(mesh.vertex[args.attribute].numpy(), args.attribute, args.column, option="--column ")
-    created = not out.exists()
-    output_folder(out, "-o")
-    try:
-        index = figures.paper_figures(mesh, args.out, field=field, k=args.k, noise=args.noise, seed=args.seed,
-                              name=Path(args.input).stem, up=args.up, tracks=True)
-    except BaseException:
-        if created and out.is_dir() and not any(out.iterdir()):
-            out.rmdir()  # no empty folder left behind by a failed run
-        raise
-    print(f"wrote {index} and its figures")
-
-
 def _study(args):
     out = Path(args.out)
     check_folder(out, "--out")  # before the config's meshes are read
@@ -498,7 +464,10 @@ COMMANDS = {
     "batch": ("run a chain of filters on many files (in parallel, resumable)", _batch_arguments, _batch),
     "spectrum": ("compute the smallest eigenpairs of a mesh and save them", _spectrum_arguments, _spectrum),
     "study": ("robustness of descriptors across resamplings (a table and plots)", _study_arguments, _study),
-    "figure": ("draw the paper's kinds of figures (Figs. 1-7) for a mesh", _figure_arguments, _figure),
+    "figure": ("draw the paper's kinds of figures (Figs. 1-7) for a mesh", _cli_pictures.figure_arguments,
+               _cli_pictures.figure),
+    "view": ("write an interactive page of a field's scale space (one offline HTML file, a slider over t)",
+             _cli_pictures.view_arguments, _cli_pictures.view),
 }
 
 

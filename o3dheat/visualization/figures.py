@@ -11,6 +11,7 @@ what its figures show.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -18,7 +19,7 @@ import numpy as np
 
 from o3dheat import checks
 from o3dheat.errors import MeshError
-from o3dheat.geometry import as_arrays, check_mesh, decimate, prepare, transfer
+from o3dheat.geometry import as_arrays, check_mesh, decimate, height, prepare, transfer, up_axis
 from o3dheat.io import atomic_write, atomic_write_text
 from o3dheat.spectral import HeatFlow, HeatKernel, diffuse, eigensolve, heat_flow, heat_kernel
 from o3dheat.topology import Surface, feature_driven, persistence, simplify_critical_points, track_critical_points
@@ -34,8 +35,9 @@ if TYPE_CHECKING:
 __all__ = ["paper_figures", "track_figures", "study_figures"]
 
 
-def _fields(up, *args, **kwargs):
-    return plot.fields(*args, up=up, **kwargs)
+def _fields(up, *args, suptitle="", **kwargs):
+    """plot.fields with ``up`` vertical, said in the title."""
+    return plot.fields(*args, up=up, suptitle=f"{suptitle}  [{up} up]", **kwargs)
 
 
 def _save(fig, path):
@@ -43,8 +45,9 @@ def _save(fig, path):
 
 
 def paper_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None, k: int = 100, noise: float = 0.1,
-                  seed: int = 0, name: str = "mesh", max_faces: int = 30000, up: str = "z",
-                  tracks: bool = False) -> Path:
+                  seed: int = 0, name: str = "mesh", max_faces: int | None = 30000, up: str = "auto",
+                  tracks: bool = False, source: PathLike | None = None,
+                  echo: Callable[[str], None] | None = None) -> Path:
     """The kinds of the paper's Figs. 1–7 for one mesh, as PNGs with an ``index.md``; Fig. 1 also
     with the full heat kernel (:class:`o3dheat.HeatFlow <o3dheat.spectral.heatflow.HeatFlow>`), whose hierarchy the truncation hides.
 
@@ -55,7 +58,7 @@ def paper_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None,
     out : str or Path
         Output folder (created).
     field : (n,) array_like, optional
-        The field to study; default the height along the longest axis plus Gaussian noise.
+        The field to study; default the height along ``up`` plus Gaussian noise.
     k : int
         Eigenpairs of the main spectrum (the comparisons use 10 and k).
     noise : float
@@ -64,14 +67,20 @@ def paper_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None,
         Seed of the default field's noise (results are reproducible).
     name : str
         Used in titles.
-    max_faces : int
+    max_faces : int or None
         Larger meshes are decimated to this many faces first (the eigensolves and critical points
-        of every panel dominate the time).
-    up : {"z", "y", "x"}
-        The axis drawn vertical.
+        of every panel dominate the time), said through ``echo`` and in ``index.md``; None keeps
+        every face.
+    up : {"auto", "x", "y", "z"}
+        The axis drawn vertical (and of the default field's height): "auto" by the rule of
+        :func:`o3dheat.geometry.up.up_axis` (from ``source``); stated in the titles and ``index.md``.
     tracks : bool
         Also the critical points' tracks across scales and their lifetimes (two more PNGs, as
         :func:`track_figures` makes them; the ``o3dheat figure`` command draws them).
+    source : str or Path, optional
+        The file the mesh was read from (for the up rule).
+    echo : callable, optional
+        Called with a line of progress per stage (the command prints them).
 
     Returns
     -------
@@ -91,19 +100,44 @@ def paper_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None,
     a few seconds.)
     """
     out = Path(out)
-    V, F, f = _prepared(mesh, field, noise, seed, max_faces, up, out)
+    say = _stopwatch(echo)
+    up, why_up = up_axis(up, source)
+    if max_faces is not None:
+        max_faces = checks.count(max_faces, "max_faces", minimum=100, maximum=10**9)
+    V, F, f, about = _prepared(mesh, field, noise, seed, max_faces, up, out, say)
     k = min(k, len(V) - 2)
     K = HeatKernel(eigensolve((V, F), k=k))
     K10 = HeatKernel(eigensolve((V, F), k=min(10, k)))
+    say(f"eigensolves ({k} and {K10.spectrum.k} eigenpairs)")
     S = Surface.from_faces(len(V), F, V)
     entries = _fig1(V, F, f, S, K, k, out, name, up)
+    say("Fig. 1: scales, the full kernel, the log grid")
     entries += _fig2(V, F, f, S, K, K10, k, out, name, up)
     irregular, more = _fig3(V, F, f, k, out, name, up)
+    say("Figs. 2-3: eigenpairs, an irregular sampling")
     entries += more + _fig4_5(*irregular, out, name, up)
     entries += _fig6_7(V, F, S, f, K, out, name, up)
+    say("Figs. 4-7: canonic basis, feature-driven approximation")
     if tracks:
         entries += _track_entries(V, F, f, out, name, up, t_max=K.scales(2, grid="log")[-1])
-    return _index(out, name, f"{len(V)} vertices, {len(F)} faces; k = {k}", field, noise, seed, entries)
+        say("tracks across scales")
+    return _index(out, name, f"{len(V)} vertices, {len(F)} faces; k = {k}; drawn with {why_up}" + about, field,
+                  noise, seed, entries)
+
+
+def _stopwatch(echo):
+    """``say(text)``: echo ``text`` with the seconds since the start and since the last line."""
+    import time
+
+    start = [time.perf_counter()] * 2
+
+    def say(text):
+        now = time.perf_counter()
+        if echo is not None:
+            echo(f"{text} ({now - start[1]:.1f} s)")
+        start[1] = now
+
+    return say
 
 
 def _count(S, g):
@@ -222,7 +256,7 @@ def _fig6_7(V, F, S, f, K, out, name, up):
 
 def _index(out, name, about, field, noise, seed, entries):
     lines = [f"# o3dheat figures: {name}", "",
-             f"{about}; field: " + ("given attribute" if field is not None else f"height + {noise:g} noise (seed {seed})"),
+             f"{about}; field: " + ("given attribute" if field is not None else f"height along the up axis + {noise:g} noise (seed {seed})"),
              ""]
     lines += [f"- `{fn}`: {text}" for fn, text in entries]
     index = out / "index.md"
@@ -230,16 +264,13 @@ def _index(out, name, about, field, noise, seed, entries):
     return index
 
 
-def _prepared(mesh, field, noise, seed, max_faces, up, out):
-    """``(V, F, f)``: the mesh and field the figures are made of (the default field: the height
-    along the longest axis plus noise), repaired (said), prepared, decimated to ``max_faces``;
-    ``out`` created."""
-    if up not in ("x", "y", "z"):
-        raise MeshError(f"up must be 'x', 'y' or 'z', got {up!r}")
+def _prepared(mesh, field, noise, seed, max_faces, up, out, say):
+    """``(V, F, f, about)``: the mesh and field the figures are made of (the default field: the
+    height along ``up`` plus noise), repaired (said), prepared, decimated to ``max_faces`` (said,
+    and ``about`` says it for the index); ``out`` created."""
     V0, F0 = as_arrays(mesh)
     if field is None:
-        axis = int(np.argmax(np.ptp(V0, axis=0)))
-        h = V0[:, axis]
+        h = height(V0, up)
         f0 = h + noise * np.ptp(h) * np.random.default_rng(seed).standard_normal(len(V0))
     else:
         f0 = checks.field(field, len(V0), "the field")
@@ -253,10 +284,15 @@ def _prepared(mesh, field, noise, seed, max_faces, up, out):
     out.mkdir(parents=True, exist_ok=True)
     prep = prepare((V0, F0))
     V, F, f = prep.V, prep.F, prep.restrict(f0)
-    if len(F) > max_faces:
+    about = ""
+    if max_faces is not None and len(F) > max_faces:
         Vd, Fd = decimate((V, F), target_faces=max_faces).arrays
+        about = (f"; decimated from {len(F):,} faces ({len(V):,} vertices) to {len(Fd):,} ({len(Vd):,}) first "
+                 "(max_faces, --max-faces none keeps all), the field transferred")
+        say(f"decimated {len(F):,} → {len(Fd):,} faces ({len(V):,} → {len(Vd):,} vertices): larger than max_faces "
+            f"= {max_faces:,} (--max-faces none keeps every face)")
         f, V, F = transfer(f, (V, F), Vd), Vd, Fd
-    return V, F, f
+    return V, F, f, about
 
 
 #: Scales of the tracks' figures, and how many of the longest-lived tracks the surface shows.
@@ -315,8 +351,8 @@ def _track_entries(V, F, f, out, name, up, t_max=None, count=TRACK_SCALES, longe
 
 
 def track_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None, noise: float = 0.1, seed: int = 0,
-                  name: str = "mesh", max_faces: int = 30000, up: str = "z", count: int = TRACK_SCALES,
-                  longest: int = TRACK_LONGEST) -> Path:
+                  name: str = "mesh", max_faces: int | None = 30000, up: str = "auto", count: int = TRACK_SCALES,
+                  longest: int = TRACK_LONGEST, source: PathLike | None = None) -> Path:
     """The critical points of a field's heat flow followed across scales: the tracks on the
     surface (:func:`o3dheat.visualization.plot.tracks`, ``tracks_paths.png``) and their lifetimes
     (:func:`o3dheat.visualization.charts.lifetime_chart`, ``tracks_lifetimes.png``), with an ``index.md``.
@@ -328,7 +364,7 @@ def track_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None,
 
     Parameters
     ----------
-    mesh, out, field, noise, seed, name, max_faces, up
+    mesh, out, field, noise, seed, name, max_faces, up, source
         As for :func:`paper_figures`.
     count : int
         Number of scales (at least 3).
@@ -353,9 +389,11 @@ def track_figures(mesh: MeshLike, out: PathLike, field: FieldLike | None = None,
         raise MeshError(f"count must be at least 3 scales, got {count}")
     longest = checks.count(longest, "longest")
     out = Path(out)
-    V, F, f = _prepared(mesh, field, noise, seed, max_faces, up, out)
+    up, why_up = up_axis(up, source)
+    V, F, f, about = _prepared(mesh, field, noise, seed, max_faces, up, out, lambda text: None)
     entries = _track_entries(V, F, f, out, name, up, count=count, longest=longest)
-    return _index(out, name, f"{len(V)} vertices, {len(F)} faces", field, noise, seed, entries)
+    return _index(out, name, f"{len(V)} vertices, {len(F)} faces; drawn with {why_up}" + about, field, noise, seed,
+                  entries)
 
 
 def study_figures(table: pd.DataFrame, out: PathLike) -> list[Path]:
