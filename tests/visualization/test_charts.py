@@ -1,6 +1,8 @@
 """The charts' axes: scale-space ticks, the study's shared and symlog axes, the persistence
 diagram above the diagonal, the lifetime chart's log axes (PAPER.md row P16)."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from conftest import icosphere, torus
@@ -99,25 +101,33 @@ def test_persistence_diagram_draws_sublevel_persistence_above_the_diagonal():
         charts.persistence_diagram(d.intervals(0))
 
 
+def bars(ax):
+    """(x, y, width, height) of each bar of a lifetime chart (drawn as polygon collections)."""
+    from matplotlib.collections import PolyCollection
+
+    boxes = [p.vertices[:4] for c in ax.collections if isinstance(c, PolyCollection) for p in c.get_paths()]
+    return [SimpleNamespace(x=b[:, 0].min(), y=b[:, 1].min(), w=np.ptp(b[:, 0]), h=np.ptp(b[:, 1])) for b in boxes]
+
+
 def test_lifetime_chart_one_bar_per_track_on_a_log_axis_with_t0():
     mesh, Ft, tr = torus_tracks()
     fig = charts.lifetime_chart(tr)
     ax = fig.axes[0]
-    assert ax.get_xscale() == "log" and len(ax.patches) == len(tr)
+    assert ax.get_xscale() == "log" and len(bars(ax)) == len(tr)
     labels = [t.get_text() for t in ax.get_xticklabels()]
     assert labels[0] == "0"  # t = 0, one grid step left of the first positive time
     x0 = ax.get_xticks()[0]
     assert np.isclose(x0, tr.times[1] ** 2 / tr.times[2]) and ax.get_xlim()[0] < x0
     # bars start at their first scale; the tracks alive at the end run past the last scale
     alive = tr.last == len(tr.times) - 1
-    ends = sorted(p.get_x() + p.get_width() for p in ax.patches)
+    ends = sorted(b.x + b.w for b in bars(ax))
     assert sum(e > tr.times[-1] * 1.01 for e in ends) == alive.sum()
     lives_on = [c for c in ax.collections if c.get_offsets().shape[0] == alive.sum()
                 and np.allclose(c.get_offsets()[:, 0], ends[-1])]
     assert lives_on, "a marker says that they live on"
     assert any("lives on" in t.get_text() for t in ax.get_legend().get_texts())
     # the longest-lived at the top (rank 1), sorted by lifetime
-    rank = {int(round(p.get_y() + p.get_height() / 2)): p.get_width() for p in ax.patches}
+    rank = {int(round(b.y + b.h / 2)): b.w for b in bars(ax)}
     widths = [rank[r] for r in sorted(rank)]
     assert widths == sorted(widths, reverse=True)
     # into a given axes; no t = 0: no "0" tick
@@ -126,7 +136,7 @@ def test_lifetime_chart_one_bar_per_track_on_a_log_axis_with_t0():
     _, _, tr2 = torus_tracks(t=(0.01, 0.05, 0.1))
     own = Figure()
     ax2 = own.subplots()
-    assert charts.lifetime_chart(tr2, ax=ax2) is own and len(ax2.patches) == len(tr2)
+    assert charts.lifetime_chart(tr2, ax=ax2) is own and len(bars(ax2)) == len(tr2)
     assert "0" not in [t.get_text() for t in ax2.get_xticklabels()]
 
 
@@ -139,6 +149,6 @@ def test_lifetime_chart_of_many_tracks_ranks_on_a_log_axis():
     tr = o3dheat.track_critical_points((V, F), o3dheat.heat_flow((V, F), f, t), t)
     assert len(tr) > 100
     ax = charts.lifetime_chart(tr).axes[0]
-    assert ax.get_yscale() == "log" and len(ax.patches) == len(tr)
+    assert ax.get_yscale() == "log" and len(bars(ax)) == len(tr)
     top, bottom = ax.get_ylim()[1], ax.get_ylim()[0]
     assert top < 1 < len(tr) < bottom  # rank 1 at the top
