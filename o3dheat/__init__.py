@@ -1,5 +1,6 @@
 """o3dheat: multi-scale heat-kernel analysis for Open3D meshes: :func:`eigensolve`, :class:`HeatKernel`,
-:func:`heat_flow`, :func:`critical_points`, :func:`track_critical_points`, ``filters.apply``, ``io.read_mesh``.
+:func:`heat_flow`, :func:`critical_points`, :func:`track_critical_points`, :func:`view`, ``filters.apply``,
+``io.read_mesh``.
 
 Implements the weighted linear-FEM heat kernel of Patanè & Falcidieno, "Multi-Scale Feature
 Spaces for Shape Processing and Analysis" (SMI 2010). See the README and the documentation site (scripts/docs.sh) for a tour.
@@ -33,6 +34,7 @@ from .topology import (
     simplify_critical_points,
     track_critical_points,
 )
+from .visualization import View, view
 
 # isort: split
 # the stages as attributes of the package, and the modules users reach by their short names
@@ -65,4 +67,5 @@ __all__ = [
     "robustness_study",
     "MeshError", "SolverError",
     "__version__", "Tracks", "track_critical_points",
+    "view", "View",
 ]

@@ -64,6 +64,15 @@ def surface(V, F, values, level_sets, critical_points):
         return Surface.from_faces(len(V2), F2, V2), V2, F2, values
 
 
+def as_drawn(V, F, values, topology):
+    """``(S, V, F, values)``: the mesh as every drawing sees it (:func:`welded`, then :func:`surface`
+    when ``topology`` — level sets or critical points — is drawn, else S is None; then
+    :func:`oriented`), the values following their vertices."""
+    V, F, values = welded(V, F, values)
+    S, V, F, values = surface(V, F, values, topology, topology)
+    return S, V, oriented(V, F), values
+
+
 def repaired(V, F, values, why, what):
     """``(V, F, values)`` of a non-manifold mesh as :func:`o3dheat.repair <o3dheat.geometry.repairs.repair>` makes it (split, not
     reoriented), each copy of a vertex with its value, and a warning saying ``why`` and ``what``

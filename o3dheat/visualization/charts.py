@@ -339,7 +339,7 @@ def lifetime_chart(tracks: Tracks, ax: Axes | None = None, title: str | None = N
     >>> tr = o3dheat.track_critical_points(m, o3dheat.heat_flow(m, f, t), t)
     >>> fig = charts.lifetime_chart(tr)
     >>> ax = fig.axes[0]
-    >>> len(ax.patches) == len(tr), ax.get_xscale()
+    >>> sum(len(c.get_paths()) for c in ax.collections if c.get_gid() == "bars") == len(tr), ax.get_xscale()
     (True, 'log')
     """
     from matplotlib.figure import Figure
@@ -396,7 +396,7 @@ def _lifetime_bars(ax, start, end, point, alive, right, color, many):
         if sel.any():
             y0, y1, x0, x1 = rank[sel] - half, rank[sel] + half, start[sel], end[sel]
             boxes = np.stack([np.c_[x0, y0], np.c_[x1, y0], np.c_[x1, y1], np.c_[x0, y1]], axis=1)
-            ax.add_collection(PolyCollection(boxes, facecolors=rgba[sel], edgecolors="white", linewidths=lw))
+            ax.add_collection(PolyCollection(boxes, facecolors=rgba[sel], edgecolors="white", linewidths=lw, gid="bars"))
     if p:
         ax.autoscale_view()
     if point.any():  # zero-length bars: a tick at their one scale

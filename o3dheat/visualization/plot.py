@@ -1,6 +1,7 @@
-"""Fields drawn on surfaces as 3D renders: :func:`field`, :func:`fields`, :func:`render`, :func:`tracks`.
+"""Fields drawn on surfaces as 3D renders: :func:`field`, :func:`fields`, :func:`draw`, :func:`render`, :func:`tracks`.
 
-:func:`fields` draws panels across scales, :func:`render` the picture alone, :func:`tracks` the
+:func:`draw` draws a :class:`~o3dheat.visualization.scene.Scene` (the one the interactive page
+shows) as panels, in a :class:`Style`; :func:`fields` draws panels across scales, :func:`render` the picture alone, :func:`tracks` the
 critical points across scales; :func:`drawn_critical_points` are those the drawings show. The
 charts of :mod:`o3dheat.visualization.charts` (:func:`scale_space`, :func:`persistence_diagram`,
 :func:`study`, :func:`lifetime_chart`) are reachable here too.
@@ -19,8 +20,8 @@ with ``fig.savefig("name.png")``; :func:`o3dheat.view` makes the interactive pag
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
-from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -35,20 +36,19 @@ from o3dheat.topology import critical_points as find_critical
 from . import _layout, _panels, _render
 from ._panels import CRITICAL_COLORS  # noqa: F401 - public here (a dict: the same object)
 from ._render import renderer_available
+from ._tracks import JUMP, tracks  # noqa: F401 - public here
 from .charts import lifetime_chart, persistence_diagram, scale_space, study
+from .scene import ScaleField, Scene
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from o3dheat.topology import CriticalPoints, Tracks
+    from o3dheat.topology import CriticalPoints
     from o3dheat.typing import FieldLike, MeshLike
 
-__all__ = ["field", "fields", "render", "renderer_available", "scale_space", "study", "drawn_critical_points",
+__all__ = ["draw", "Style", "field", "fields", "render", "renderer_available", "scale_space", "study", "drawn_critical_points",
            "persistence_diagram", "tracks", "lifetime_chart", "CRITICAL_COLORS"]
 
-#: A track's move between two scales longer than this fraction of the mesh's diagonal is not drawn
-#: (an extremum that flows far, a saddle matched far away): a straight line would cut across the surface.
-JUMP = 0.05
 #: level sets: how many, their values, or None
 Levels = int | Sequence[float] | None
 
@@ -93,44 +93,126 @@ def drawn_critical_points(mesh: MeshLike | Surface, f: FieldLike) -> CriticalPoi
 
 
 
-def _compose(V, F, values, titles, ncols, level_sets, critical_points, view, cmap, shared_range, size,
-             suptitle, up, label, renderer, single):
-    """The figure of :func:`field` and :func:`fields`: one panel per column of ``values``."""
+@dataclasses.dataclass(frozen=True)
+class Style:
+    """How a scene is drawn as panels (:func:`draw`): what the figure adds around the pictures.
+
+    Attributes
+    ----------
+    titles : sequence of str, optional
+        One per panel.
+    ncols : int, optional
+        Panels per row (default: all in one row, at most 5).
+    critical_points : bool or CriticalPoints
+        Draw the critical points (computed per panel, less those of rounding errors on flat
+        parts: :func:`drawn_critical_points`), these, or none.
+    shared_range : bool
+        One colour range and colorbar for all panels, or one each.
+    size : float
+        Inches per panel.
+    suptitle : str, optional
+        Above the panels.
+    label : str
+        The field's name on the colorbar.
+    renderer : {"auto", "raster", "matplotlib"}
+        As for :func:`field`.
+    counts : bool
+        The legend counts the critical points (a single panel).
+    """
+
+    titles: Sequence[str] | None = None
+    ncols: int | None = None
+    critical_points: bool | CriticalPoints = True
+    shared_range: bool = True
+    size: float = 3.5
+    suptitle: str | None = None
+    label: str = "f"
+    renderer: str = "auto"
+    counts: bool = False
+
+
+def draw(scene: Scene, columns: Sequence[int] | None = None, field: int | str = 0, style: Style = Style()) -> Figure:
+    """Panels of a :class:`~o3dheat.visualization.scene.Scene`: its field at some scales, as PNG figures
+    show it (the interactive page, :func:`o3dheat.view`, draws the same scene in a browser).
+
+    Parameters
+    ----------
+    scene : Scene
+        The surface as drawn, the fields over scales, ``up``, the view, level sets and colormap.
+    columns : sequence of int, optional
+        The scales to draw (default: all).
+    field : int or str
+        Which of the scene's fields (index or name).
+    style : Style
+        Titles, layout, colorbar and renderer.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat, o3dheat.visualization.plot as plot
+    >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+    >>> v = o3dheat.view(m, m.vertex.positions.numpy()[:, 0], [0.0, 0.1, 1.0], tracks=False)
+    >>> fig = plot.draw(v.scene, columns=[0, 2], style=plot.Style(titles=["t = 0", "t = 1"]))
+    >>> len(fig.axes)  # two pictures and their colorbar
+    3
+    """
     from matplotlib.figure import Figure  # no pyplot: no GUI backend, no global state
 
-    _layout.check_style(cmap, size)
-    V = _render.upright(V, up)
+    names = [f.name for f in scene.fields]
+    if isinstance(field, str):
+        if field not in names:
+            raise MeshError(f"the scene has no field {field!r} (its fields: {', '.join(names)})")
+        field = names.index(field)
+    values = scene.fields[checks.count(field, "field", minimum=0, maximum=len(names) - 1)].values
+    if columns is not None:
+        columns = [checks.count(c, "column", minimum=0, maximum=values.shape[1] - 1) for c in columns]
+        values = values[:, columns]
+    _layout.check_style(scene.cmap, style.size)
     T = values.shape[1]
-    if titles is not None and len(titles) != T:
-        raise MeshError(f"{len(titles)} titles for {T} fields")
-    if ncols is not None:
-        ncols = checks.count(ncols, "ncols")
+    if style.titles is not None and len(style.titles) != T:
+        raise MeshError(f"{len(style.titles)} titles for {T} fields")
+    ncols = checks.count(style.ncols, "ncols") if style.ncols is not None else None
     ncols = min(ncols or min(T, 5), T)
     nrows = -(-T // ncols)
-    V, F, values = _layout.welded(V, F, values)
-    S, V, F, values = _layout.surface(V, F, values, level_sets, critical_points)
-    F = _layout.oriented(V, F)
-    frame = _render.View(V, view)
-    r = _render.renderer(renderer)  # here: its warning names the caller of field or fields
-    panels = _panels_of(V, F, values, cmap, level_sets, critical_points, S, shared_range)
-    w, h = _layout.picture_size(frame, size)
-    extra_h = (0.35 if titles is not None else 0.0) + (0.45 if not shared_range else 0.0)
-    fig = Figure(figsize=(ncols * w + (1.1 if shared_range else 0.2),
-                          nrows * (h + extra_h) + 0.45 + (0.45 if suptitle else 0.0)),
+    V, F, level_sets, cp = _render.upright(scene.V, scene.up), scene.F, scene.levels, style.critical_points
+    S = Surface.from_faces(len(V), F, V) if (level_sets is not None and level_sets is not False) or cp is True else None
+    frame = _render.View(V, scene.view)
+    r = _render.renderer(style.renderer)
+    panels = _panels_of(V, F, values, scene.cmap, level_sets, cp, S, style.shared_range)
+    w, h = _layout.picture_size(frame, style.size)
+    shared = style.shared_range
+    extra_h = (0.35 if style.titles is not None else 0.0) + (0.45 if not shared else 0.0)
+    fig = Figure(figsize=(ncols * w + (1.1 if shared else 0.2),
+                          nrows * (h + extra_h) + 0.45 + (0.45 if style.suptitle else 0.0)),
                  dpi=100, layout="constrained")
     fig.get_layout_engine().set(w_pad=0.04, h_pad=0.04, wspace=0.03, hspace=0.05)
     normals = vertex_normals(V, F)
-    axes = [_panel_axes(fig, (nrows, ncols, i + 1), p, r, frame, normals, view, w, titles, i)
+    axes = [_panel_axes(fig, (nrows, ncols, i + 1), p, r, frame, normals, scene.view, w, style.titles, i)
             for i, p in enumerate(panels)]
-    if shared_range:
-        _layout.colorbar(fig, axes, panels[0], label, "right", values)
+    if shared:
+        _layout.colorbar(fig, axes, panels[0], style.label, "right", values)
     else:
         for ax, p in zip(axes, panels, strict=True):
-            _layout.colorbar(fig, ax, p, label, "bottom", p.f)
-    _layout.legend(fig, panels, counts=single)
-    if suptitle:
-        fig.suptitle(suptitle, fontsize=11)
+            _layout.colorbar(fig, ax, p, style.label, "bottom", p.f)
+    _layout.legend(fig, panels, counts=style.counts)
+    if style.suptitle:
+        fig.suptitle(style.suptitle, fontsize=11)
     return fig
+
+
+def _scene(mesh, values, view, up, level_sets, cmap, critical_points):
+    """The scene of :func:`field` and :func:`fields`: the mesh as drawn, ``values`` its one field."""
+    V, F = as_arrays(mesh)
+    _layout.check_style(cmap)
+    _render.upright(V[:1], up)  # up checked before any work
+    topology = (level_sets is not None and level_sets is not False) or critical_points is True
+    _, V, F, values = _layout.as_drawn(V, F, values, topology)
+    T = values.shape[1]
+    return Scene(V, F, (ScaleField("f", values, np.full(T, np.nan), ()),), up=up, view=view, levels=level_sets,
+                 cmap=cmap)
 
 
 def _panels_of(V, F, values, cmap, level_sets, critical_points, S, shared_range):
@@ -223,10 +305,10 @@ def field(mesh: MeshLike, f: FieldLike, level_sets: Levels = 10, critical_points
     >>> fig.axes[1].get_ylabel()
     'z'
     """
-    V, F = as_arrays(mesh)
-    f = _layout.field_values(f, len(V))
-    return _compose(V, F, f[:, None], [title] if title else None, 1, level_sets, critical_points, view, cmap,
-                    True, size, None, up, label, renderer, single=True)
+    f = _layout.field_values(f, len(as_arrays(mesh)[0]))
+    scene = _scene(mesh, f[:, None], view, up, level_sets, cmap, critical_points)
+    return draw(scene, style=Style([title] if title else None, 1, critical_points, True, size, None, label, renderer,
+                                   counts=True))
 
 
 def fields(mesh: MeshLike, F_values: FieldLike, titles: Sequence[str] | None = None, ncols: int | None = None,
@@ -269,15 +351,14 @@ def fields(mesh: MeshLike, F_values: FieldLike, titles: Sequence[str] | None = N
     >>> len(fig.axes)  # three pictures and one shared colorbar
     4
     """
-    V, Fc = as_arrays(mesh)
     G = np.asarray(F_values, dtype=np.float64)
     if G.ndim == 1:
         G = G[:, None]
-    G = _layout.field_values(G, len(V))
+    G = _layout.field_values(G, len(as_arrays(mesh)[0]))
     if G.shape[1] == 0:
         raise MeshError("no field to draw: F_values has 0 columns")
-    return _compose(V, Fc, G, titles, ncols, level_sets, critical_points, view, cmap, shared_range, size,
-                    suptitle, up, label, renderer, single=False)
+    scene = _scene(mesh, G, view, up, level_sets, cmap, critical_points)
+    return draw(scene, style=Style(titles, ncols, critical_points, shared_range, size, suptitle, label, renderer))
 
 
 def render(mesh: MeshLike, f: FieldLike, level_sets: Levels = 10, critical_points: bool | CriticalPoints = True,
@@ -321,189 +402,12 @@ def render(mesh: MeshLike, f: FieldLike, level_sets: Levels = 10, critical_point
         if len(vr) != 2 or not np.all(np.isfinite(vr)) or not vr[0] < vr[1]:
             raise MeshError(f"vrange must be two finite numbers (low, high), low < high, got {vrange!r}")
     _layout.check_style(cmap)
-    V, F, f = _layout.welded(V, F, f)
-    S, V, F, f = _layout.surface(V, F, f, level_sets, critical_points)
+    topology = (level_sets is not None and level_sets is not False) or critical_points is True
+    S, V, F, f = _layout.as_drawn(V, F, f, topology)
     parts = _panels.vertex_parts(len(V), F)
     flat = _panels.flat_parts(f, parts)[np.maximum(parts, 0)] & (parts >= 0)
     lo, hi = _layout.color_range(f, flat) if vrange is None else (float(vr[0]), float(vr[1]))  # of what is drawn, as field's
-    F = _layout.oriented(V, F)
     frame = _render.View(V, view)
     r = _render.renderer("raster")
     panel = _panels.Panel(V, F, f, lo, hi, cmap, level_sets, critical_points, S, None, parts)
     return panel.render(r, frame, vertex_normals(V, F))
-
-
-
-def tracks(mesh: MeshLike, tracks: Tracks, f: FieldLike | None = None, longest: int | None = None,
-           view: tuple[float, float] = (20.0, -60.0), cmap: str = "Greys", title: str | None = None,
-           size: float = 6.0, up: str = "z", label: str = "f", renderer: str = "auto") -> Figure:
-    """The critical points' tracks across scales on the surface (:func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>`).
-
-    One polyline per track through its positions at the scales it lives at (minima blue, saddles
-    green, maxima red: :data:`CRITICAL_COLORS`), and a marker where it ends (for a track alive at
-    the last scale: its position there). The surface is drawn as by :func:`field` (the same
-    renderer, hidden surfaces removed: a track behind the surface does not show), coloured by
-    ``f`` at the first scale (default in greys, so that no colour of the surface is a track's)
-    in a colormap washed halfway to white so that the tracks stand out, or plain grey without
-    ``f``. A move between two scales longer than ``JUMP`` of the mesh's diagonal (and than 2.5
-    mean edge lengths) is left out of the line (the panel counts them): a straight line would cut across the surface. Markers are sized per part as the critical points' are
-    (``MARKER_COVER``); above ``MAX_CRITICAL_POINTS`` ends none are drawn (the panel says so).
-
-    Parameters
-    ----------
-    mesh : mesh or (V, F)
-        The mesh the tracks were made on (same vertices).
-    tracks : Tracks
-        With vertex positions (as :func:`o3dheat.track_critical_points <o3dheat.topology.tracking.track_critical_points>` makes them).
-    f : (n,) or (n, T) array_like, optional
-        The field; of (n, T) (one column per scale, as given to the tracking) the first column.
-    longest : int, optional
-        Draw only this many tracks, the longest-lived (alive at the last scale first, then by
-        lifetime and the number of scales lived at): a noisy field has thousands that live at
-        one or two scales. Default: all.
-    view, cmap, title, size, up, label, renderer
-        As for :func:`field`.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        Its first axes holds the picture (then the colorbar, with ``f``); a legend counts the
-        tracks drawn of each kind.
-
-    Examples
-    --------
-    >>> import numpy as np, open3d as o3d, o3dheat, o3dheat.visualization.plot as plot
-    >>> m = o3d.t.geometry.TriangleMesh.create_torus()
-    >>> x = m.vertex.positions.numpy()[:, 0]
-    >>> t = [0.0, 0.1, 0.2]
-    >>> tr = o3dheat.track_critical_points(m, np.c_[x, 2 * x, 3 * x], t)
-    >>> fig = plot.tracks(m, tr, x, title="x on a torus")
-    >>> [t.get_text() for t in fig.legends[0].get_texts()][:3]
-    ['minima (1 track)', 'saddles (2 tracks)', 'maxima (1 track)']
-    """
-    from matplotlib.figure import Figure
-
-    tr = _layout.check_tracks(tracks)
-    V, F = as_arrays(mesh)
-    if tr.positions_of is None or len(tr.positions_of) != len(V):
-        raise MeshError(f"the tracks are not of this mesh ({len(V)} vertices): pass the mesh given to "
-                        "o3dheat.track_critical_points")
-    _layout.check_style(cmap, size)
-    if longest is not None:
-        longest = checks.count(longest, "longest")
-    g = np.zeros(len(V)) if f is None else _first_scale(f, len(V))
-    V = _render.upright(V, up)
-    P = tr.positions[..., _render.UP[up]] if len(tr) else np.zeros((0, len(tr.times), 3))
-    order = _layout.by_lifetime(tr)
-    chosen = order if longest is None else order[:longest]
-    V, F, g = _layout.welded(V, F, g)
-    F = _layout.oriented(V, F)
-    frame = _render.View(V, view)
-    r = _render.renderer(renderer)  # here: its warning names the caller of tracks
-    parts = _panels.vertex_parts(len(V), F)
-    kinds = np.asarray(tr.kind)[chosen]
-    segments, colors, jumps, jump = _paths(tr, P, chosen, kinds, V, F, frame)
-    panel, counts = _ends_panel(tr, P, chosen, kinds, V, F, g, parts, None if f is None else cmap)
-    w, h = _layout.picture_size(frame, size)
-    fig = Figure(figsize=(w + (1.1 if f is not None else 0.2), h + 0.9 + (0.35 if title else 0.0)), dpi=100,
-                 layout="constrained")
-    fig.get_layout_engine().set(w_pad=0.04, h_pad=0.04)
-    ax = _tracks_axes(fig, panel, r, frame, V, F, view, w, segments, colors)
-    if title:
-        ax.set_title(title, fontsize=10)
-    notes = []
-    if longest is not None and len(chosen) < len(tr):
-        notes.append(f"the {len(chosen):,} longest-lived of {len(tr):,} tracks")
-    if jumps:
-        notes.append(f"{jumps:,} move{'s' if jumps > 1 else ''} between two scales longer than "
-                     f"{100 * jump / frame.diagonal:.2g}% of the mesh's size not drawn (a line across would not "
-                     "lie on the surface)")
-    if panel.critical and not panel.draw_critical and panel.n_critical:
-        notes.append(f"{panel.n_critical:,} track ends: too many to mark")
-    if panel.too_dense:
-        notes.append(f"{panel.too_dense:,} track ends too dense to mark at this size")
-    if notes:
-        _layout.note(ax, notes, w, each=False)
-    if f is not None:
-        _layout.colorbar(fig, ax, panel, label + " (first scale)", "right", panel.f)
-    _tracks_legend(fig, tr, counts)
-    return fig
-
-
-def _first_scale(f, n):
-    """The field of :func:`tracks`: of (n, T) values (one column per scale) the first column."""
-    G = np.asarray(checks.values(f), dtype=np.float64)
-    return _layout.field_values(G[:, 0] if G.ndim == 2 else G, n)
-
-
-def _paths(tr, P, chosen, kinds, V, F, frame):
-    """``(segments, colors, jumps, jump)``: the tracks' paths, consecutive living positions that
-    differ and are at most ``jump`` apart, in their kinds' colours, and how many moves were longer."""
-    from matplotlib.colors import to_rgb
-
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]])
-    edge = float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean()) if len(E) else 0.0
-    jump = max(JUMP * frame.diagonal, 2.5 * edge)  # a move along an edge or two lies on the surface
-    jumps = 0
-    segs, cols = [], []
-    for i, kind in zip(chosen, kinds, strict=True):
-        Q = P[i, tr.first[i]:tr.last[i] + 1]
-        length = np.linalg.norm(Q[1:] - Q[:-1], axis=1)
-        jumps += int((length > jump).sum())
-        step = (length > 0) & (length <= jump)
-        if step.any():
-            segs.append(np.stack([Q[:-1][step], Q[1:][step]], 1))
-            cols.append(np.tile(to_rgb(_layout.KIND_COLORS[kind]), (int(step.sum()), 1)))
-    segments = np.concatenate(segs) if segs else np.zeros((0, 2, 3))
-    colors = np.concatenate(cols) if cols else np.zeros((0, 3))
-    return segments, colors, jumps, jump
-
-
-def _ends_panel(tr, P, chosen, kinds, V, F, g, parts, cmap):
-    """``(panel, counts)``: the surface coloured by ``g`` (``cmap`` washed; None: plain grey) with
-    a marker at each chosen track's end (a vertex each: exact positions), and the tracks of each kind."""
-    from scipy.spatial import cKDTree
-
-    if cmap is None:
-        lo, hi, colormap = -0.6, 1.4, "Greys"  # g = 0: a light grey
-    else:
-        flat = _panels.flat_parts(g, parts)[np.maximum(parts, 0)] & (parts >= 0)
-        lo, hi = _layout.color_range(g, flat)
-        colormap = _layout.washed(cmap)
-    ends = P[chosen, tr.last[chosen]] if len(chosen) else np.zeros((0, 3))
-    end_vertex = cKDTree(V).query(ends)[1] if len(ends) else np.zeros(0, np.int64)
-    counts = {k: int((kinds == k).sum()) for k in _layout.KIND_COLORS}
-    cp = SimpleNamespace(**{_layout.PLURAL[k]: end_vertex[kinds == k] for k in _layout.KIND_COLORS},
-                         counts=(counts["minimum"], counts["saddle"], counts["maximum"]))
-    return _panels.Panel(V, F, g, lo, hi, colormap, None, cp, None, None, parts), counts
-
-
-def _tracks_axes(fig, panel, r, frame, V, F, view, w, segments, colors):
-    """The axes of the tracks' picture: the surface and its end markers with the paths as tubes (by
-    ``r``), or matplotlib's 3D axes with the paths as lines where they face the viewer."""
-    normals = vertex_normals(V, F)
-    if r is not None:
-        ax = fig.add_subplot(1, 1, 1)
-        _layout.picture(ax, panel, r, frame, normals, w, paths=(segments, colors))
-        return ax
-    from mpl_toolkits.mplot3d.art3d import Line3DCollection
-    from scipy.spatial import cKDTree
-
-    ax = fig.add_subplot(1, 1, 1, projection="3d")
-    panel.draw_matplotlib(ax, view, frame)
-    if len(segments):
-        _, near = cKDTree(V).query(segments.mean(axis=1))
-        facing = normals[near] @ frame.d >= 0
-        ax.add_collection3d(Line3DCollection(segments[facing], colors=colors[facing], linewidths=1.6, zorder=2))
-    return ax
-
-
-def _tracks_legend(fig, tr, counts):
-    from matplotlib.lines import Line2D
-
-    K, plural = _layout.KIND_COLORS, _layout.PLURAL
-    handles = [Line2D([], [], color=K[k], lw=2.0, marker="o", ms=5, markeredgecolor="white",
-                      label=f"{plural[k]} ({counts[k]:,} track{'s' if counts[k] != 1 else ''})") for k in K]
-    fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize=8, frameon=False,
-               title=f"tracks over {len(tr.times)} scales, ● where each ends (or at the last scale)",
-               title_fontsize=8)

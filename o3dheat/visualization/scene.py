@@ -1,0 +1,390 @@
+"""One scene of a scale space, built once and drawn two ways: :class:`Scene`, :class:`ScaleField`.
+
+A scene holds what a picture of a scale space shows: the surface as drawn (welded, repaired,
+possibly decimated), one or more fields over scales (each column a scale ``t``), their critical
+points at every scale (computed in Python on the float64 values, before any quantization), the
+critical points' tracks, the number of level sets, the view and the vertical axis, and notes on
+what was repaired or decimated. :mod:`o3dheat.visualization.plot` draws it as static PNGs and
+:mod:`o3dheat.visualization.page` as one offline HTML page with a slider over ``t``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from o3dheat import checks
+from o3dheat.errors import MeshError
+from o3dheat.geometry import as_arrays, check_mesh, decimate, height, prepare, transfer, up_axis
+from o3dheat.spectral import HeatFlow, HeatKernel, eigensolve
+from o3dheat.topology import Surface, critical_points, track_critical_points
+
+from . import _layout, _panels
+
+if TYPE_CHECKING:
+    from o3dheat.topology import CriticalPoints, Tracks
+
+__all__ = ["Scene", "ScaleField", "Recipe", "build"]
+
+log = logging.getLogger("o3dheat")
+#: Vertex attributes that are never fields of a scene.
+GEOMETRY = ("positions", "normals", "colors", "texture_uvs")
+METHODS = ("exact", "spectral")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ScaleField:
+    """One field over scales: column ``j`` of :attr:`values` is the field at time ``times[j]``.
+
+    Attributes
+    ----------
+    name : str
+        The field's name (a vertex attribute's name, e.g. ``"f_exact"``).
+    values : (n, T) float64 ndarray
+        Finite values, one row per vertex of the scene's surface.
+    times : (T,) float64 ndarray
+        The scales, paper convention (``exp(−λ t / 2)``); NaN where a column has no known time
+        (an attribute read from a file): the page then shows the column's index.
+    critical : tuple of CriticalPoints
+        One per column: :func:`o3dheat.critical_points <o3dheat.topology.critical.critical_points>`
+        of that column on the scene's surface (``counts`` is what the page's ``counts()`` returns).
+    eps_inf : (T,) float64 ndarray or None
+        ``‖Φ_t f − f‖∞`` per column where the unsmoothed field is known, else None.
+    label : str
+        How the scales were made, in words (e.g. ``"exact heat flow, log grid"``).
+    markers : tuple of CriticalPoints or None
+        The critical points drawn, one per column (None: all of :attr:`critical`). :func:`build`
+        leaves out those of rounding errors on a part where the column is constant (as the static
+        figures do: :func:`o3dheat.visualization.plot.drawn_critical_points`); the page says how many.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> from o3dheat.visualization.scene import ScaleField
+    >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+    >>> x = m.vertex.positions.numpy()[:, 0]
+    >>> sf = ScaleField("x", np.c_[x, x / 2], np.array([0.0, 1.0]), (o3dheat.critical_points(m, x),) * 2)
+    >>> sf.values.shape, sf.critical[1].counts
+    ((600, 2), (1, 2, 1))
+    """
+
+    name: str
+    values: np.ndarray
+    times: np.ndarray
+    critical: tuple[CriticalPoints, ...]
+    eps_inf: np.ndarray | None = None
+    label: str = ""
+    markers: tuple[CriticalPoints, ...] | None = None
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Scene:
+    """What a picture of a scale space shows (see the module docstring).
+
+    Attributes
+    ----------
+    V : (n, 3) float64 ndarray
+        The drawn surface's vertices, in the mesh's own coordinates.
+    F : (m, 3) int64 ndarray
+        Its faces, wound consistently per part (outward on closed parts).
+    fields : tuple of ScaleField
+        At least one; the first is shown first.
+    tracks : dict of str to Tracks
+        The critical points' tracks of some fields (by :attr:`ScaleField.name`), on ``V``.
+    up : {"x", "y", "z"}
+        The axis drawn vertical.
+    view : (float, float)
+        (elevation, azimuth) in degrees of the initial view, ``up`` vertical.
+    levels : int
+        Number of level sets drawn (evenly spaced over the colour range); 0: none.
+    cmap : str
+        A matplotlib colormap's name.
+    notes : tuple of str
+        What was done to the mesh before drawing it (repairs, decimation), in words.
+    name : str
+        The mesh's name, for titles.
+
+    Examples
+    --------
+    >>> import numpy as np, open3d as o3d, o3dheat
+    >>> from o3dheat.visualization.scene import Scene, ScaleField
+    >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+    >>> V, F = m.vertex.positions.numpy(), m.triangle.indices.numpy()
+    >>> scene = Scene(V, F, (ScaleField("z", V[:, 2:], np.zeros(1), (o3dheat.critical_points(m, V[:, 2]),)),))
+    >>> len(scene.fields), scene.up
+    (1, 'z')
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    fields: tuple[ScaleField, ...]
+    tracks: dict[str, Tracks] = dataclasses.field(default_factory=dict)
+    up: str = "z"
+    view: tuple[float, float] = (20.0, -60.0)
+    levels: int = 10
+    cmap: str = "coolwarm"
+    notes: tuple[str, ...] = ()
+    name: str = "mesh"
+
+
+@dataclasses.dataclass(frozen=True)
+class Recipe:
+    """How a scene is made from a mesh (:func:`build`); every field has a default.
+
+    Attributes
+    ----------
+    method : {"exact", "spectral"}
+        ``Φ_t f`` by the full heat kernel (:func:`o3dheat.heat_flow <o3dheat.spectral.heatflow.heat_flow>`) or
+        truncated to ``k`` eigenpairs (:class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>`).
+    k : int
+        Eigenpairs of the spectral method, and of the spectrum that defines the default scale grids.
+    up : {"auto", "x", "y", "z"}
+        The vertical axis (:func:`o3dheat.geometry.up.up_axis`); with "auto" the rule uses ``source``.
+    source : str or Path, optional
+        The file the mesh was read from (for the up rule and the title).
+    max_faces : int or None
+        A larger mesh is shown on a decimated copy with the fields transferred (None: all faces).
+    column : int, optional
+        Of an (n, c) field, the column to smooth (default: the columns are the scales).
+    noise, seed : float, int
+        The default field: the height along ``up`` plus ``noise`` (relative to its range) Gaussian
+        noise of this seed.
+    tracks : bool
+        Follow the critical points across the scales (fields with increasing times only).
+    levels : int
+        Level sets drawn; cmap: a matplotlib colormap.
+
+    Examples
+    --------
+    >>> from o3dheat.visualization.scene import Recipe
+    >>> Recipe(method="spectral", k=50, up="y").max_faces
+    400000
+    """
+
+    method: str = "exact"
+    k: int = 100
+    up: str = "auto"
+    source: object = None
+    max_faces: int | None = 400_000
+    column: int | None = None
+    noise: float = 0.1
+    seed: int = 0
+    tracks: bool = True
+    levels: int = 10
+    cmap: str = "coolwarm"
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise MeshError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        checks.count(self.k, "k")
+        if self.max_faces is not None:
+            checks.count(self.max_faces, "max_faces", minimum=100)
+        if self.column is not None:
+            checks.count(self.column, "column", minimum=0)
+        if not isinstance(self.tracks, bool):
+            raise MeshError(f"tracks must be True or False, got {self.tracks!r}")
+        checks.count(self.levels, "levels", minimum=0, maximum=1000)
+        _layout.check_style(self.cmap)
+        if isinstance(self.noise, bool) or not isinstance(self.noise, (int, float)) or not 0 <= self.noise < 1e6:
+            raise MeshError(f"noise must be a number >= 0, got {self.noise!r}")
+        checks.count(self.seed, "seed", minimum=0)
+        up_axis(self.up)
+
+
+def build(mesh, field=None, t=None, recipe: Recipe | None = None, echo: Callable[[str], None] | None = None) -> Scene:
+    """The :class:`Scene` of a field's scale space on a mesh (what :func:`o3dheat.view` shows).
+
+    Parameters
+    ----------
+    mesh : Open3D mesh or (V, F)
+        The surface; an ``o3d.t`` mesh may carry the field as a vertex attribute.
+    field : str, (n,) or (n, T) array_like, optional
+        A vertex attribute's name or values. (n,): smoothed at the times ``t``; (n, T): its
+        columns are the scales, shown as they are (or, with ``recipe.column``, that column
+        smoothed). Default: every (n, T) float attribute of the mesh (T > 1) as given (in name order), or where
+        there is none the height along ``up`` plus noise, smoothed.
+    t : float or (T,) array_like, optional
+        The times (paper convention); for (n, T) fields, the time of each column. Default for a
+        smoothed field: two grids, 20 log-spaced scales over the whole multi-scale range and the
+        paper's 10 (:meth:`HeatKernel.scales <o3dheat.spectral.kernel.HeatKernel.scales>` with
+        ``recipe.k`` eigenpairs), two fields of the scene.
+    recipe : Recipe, optional
+        How (method, up, decimation, tracks, ...); default ``Recipe()``.
+    echo : callable, optional
+        Called with a line of progress per stage.
+
+    Returns
+    -------
+    Scene
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> from o3dheat.visualization.scene import Recipe, build
+    >>> m = o3d.t.geometry.TriangleMesh.create_torus()
+    >>> s = build(m, m.vertex.positions.numpy()[:, 0], [0.0, 0.1, 1.0], Recipe(tracks=False))
+    >>> s.fields[0].values.shape, [cp.counts for cp in s.fields[0].critical][:1], s.up
+    ((600, 3), [(1, 2, 1)], 'z')
+    """
+    say = echo or (lambda line: None)
+    recipe = Recipe() if recipe is None else recipe
+    V0, F0 = as_arrays(mesh)
+    up, why_up = up_axis(recipe.up, recipe.source)
+    given = _given_fields(mesh, field, len(V0), recipe)
+    notes = [f"drawn with {why_up}"]
+    V, F, given = _cleaned(V0, F0, given, notes)
+    fields = _smoothed(V, F, given, t, recipe, up, say)
+    if recipe.max_faces is not None and len(F) > recipe.max_faces:
+        say(f"decimating {len(F):,} faces to {recipe.max_faces:,} for the picture (max_faces; None keeps all)")
+        Vd, Fd = decimate((V, F), target_faces=recipe.max_faces).arrays
+        notes.append(f"shown on a decimated copy: {len(F):,} → {len(Fd):,} faces ({len(V):,} → {len(Vd):,} "
+                     "vertices), the fields computed on the full mesh and transferred")
+        fields = [(name, transfer(vals, (V, F), Vd), times, eps, label) for name, vals, times, eps, label in fields]
+        V, F = Vd, Fd
+    F = _layout.oriented(V, F)
+    t0 = time.perf_counter()
+    S = Surface.from_faces(len(V), F, V)
+    parts = _panels.vertex_parts(len(V), F)
+    out = tuple(_with_critical_points(S, parts, *field) for field in fields)
+    say(f"critical points at {sum(f.values.shape[1] for f in out)} scales: {time.perf_counter() - t0:.1f} s")
+    tracks = {}
+    if recipe.tracks:
+        for f in out:
+            if f.values.shape[1] > 1 and np.all(np.isfinite(f.times)) and np.all(np.diff(f.times) > 0):
+                t0 = time.perf_counter()
+                tracks[f.name] = track_critical_points(S, f.values, f.times)
+                say(f"tracks of {f.name}: {len(tracks[f.name]):,} in {time.perf_counter() - t0:.1f} s")
+    return Scene(V, F, out, tracks, up=up, levels=recipe.levels, cmap=recipe.cmap, notes=tuple(notes),
+                 name=_name(recipe.source))
+
+
+def _with_critical_points(S, parts, name, vals, times, eps, label):
+    """The :class:`ScaleField`: the critical points of every column, and those drawn (less the
+    rounding errors' on parts where the column is constant)."""
+    critical, markers = [], []
+    for j in range(vals.shape[1]):
+        cp = critical_points(S, vals[:, j])
+        flat = _panels.flat_parts(vals[:, j], parts)
+        critical.append(cp)
+        markers.append(_panels.without_flat(cp, parts, flat)[0] if flat.any() else cp)
+    return ScaleField(name, vals, times, tuple(critical), eps, label, tuple(markers))
+
+
+def _name(source):
+    from pathlib import Path
+
+    return Path(source).name if source is not None else "mesh"
+
+
+def _attributes(mesh):
+    """``{name: values}`` of an ``o3d.t`` mesh's vertex attributes (none for other meshes)."""
+    vertex = getattr(mesh, "vertex", None)
+    if vertex is None or not hasattr(mesh, "triangle"):
+        return {}
+    return {key: vertex[key].numpy() for key in vertex if key not in GEOMETRY}
+
+
+def _given_fields(mesh, field, n, recipe):
+    """``[(name, values)]``: the fields asked for, checked (one line for a NaN, an unknown attribute)."""
+    attrs = _attributes(mesh)
+    if field is None:
+        many = {k: v for k, v in attrs.items() if v.ndim == 2 and v.shape[1] > 1 and np.issubdtype(v.dtype, np.floating)}
+        if many and recipe.column is None:
+            return [(k, checks.field(many[k], n, f"attribute {k!r}")) for k in sorted(many)]  # in name order
+        return [("height", None)]
+    if isinstance(field, str):
+        if field not in attrs:
+            have = ", ".join(attrs) or "none"
+            raise MeshError(f"the mesh has no vertex attribute {field!r} (its attributes: {have})")
+        name, values = field, attrs[field]
+    else:
+        name, values = "f", field
+    values = checks.field(values, n, f"field {name!r}" if isinstance(field, str) else "the field")
+    if recipe.column is not None:
+        if values.ndim != 2 or recipe.column >= values.shape[1]:
+            raise MeshError(f"column {recipe.column} asked of {name!r}, which has shape {values.shape}")
+        values, name = values[:, recipe.column], f"{name}[{recipe.column}]"
+    return [(name, values)]
+
+
+def _cleaned(V, F, given, notes):
+    """``(V, F, given)`` on the mesh as o3dheat sees it: non-manifold parts split (said), coincident
+    vertices welded (said), unreferenced vertices dropped; the default field made on it."""
+    report = check_mesh((V, F))
+    if report.non_manifold_edges or report.non_manifold_vertices:
+        why = (f"{report.non_manifold_edges} non-manifold edges and {report.non_manifold_vertices} non-manifold "
+               "vertices split (o3dheat.repair)")
+        fixed = []
+        for name, vals in given:
+            V2, F2, vals = _layout.repaired(V, F, np.zeros(len(V)) if vals is None else vals, why, "the scene is made")
+            fixed.append((name, None if name == "height" and vals is not None and not vals.any() else vals))
+        V, F, given = V2, F2, fixed
+        notes.append(why)
+    p = prepare((V, F))
+    if len(p.V) < len(V):
+        notes.append(f"{len(V) - len(p.V):,} vertices welded or unreferenced dropped ({len(V):,} → {len(p.V):,}): "
+                     "vertex indices are those of the cleaned mesh")
+    return p.V, p.F, [(name, None if vals is None else p.restrict(vals)) for name, vals in given]
+
+
+def _smoothed(V, F, given, t, recipe, up, say):
+    """``[(name, values (n, T), times, eps_inf, label)]``: each field over its scales."""
+    out = []
+    smoother = None
+    for name, vals in given:
+        default = vals is None
+        if default:  # the noisy height along up
+            h = height(V, up)
+            vals = h + recipe.noise * np.ptp(h) * np.random.default_rng(recipe.seed).standard_normal(len(V))
+            name = "f"  # as in the demo: the noisy height
+        if vals.ndim == 2:
+            T = vals.shape[1]
+            times = np.full(T, np.nan) if t is None else checks.times(t)
+            if len(times) != T:
+                raise MeshError(f"{len(times)} times given for {name!r}, which has {T} columns")
+            out.append((name, vals, times, None, "as given"))
+            continue
+        if smoother is None:
+            smoother = _Smoother(V, F, recipe, say)
+        grids = [("", checks.times(t), "times given")] if t is not None else [
+            ("", smoother.grid(20, "log"), "20 log-spaced scales, the whole multi-scale range"),
+            ("_paper", smoother.grid(10, "paper"), f"the paper's 10 scales (i/10)/λ_{recipe.k}")]
+        for suffix, times, what in grids:
+            t0 = time.perf_counter()
+            G = smoother(vals, times)
+            eps = np.abs(G - vals[:, None]).max(axis=0) / max(float(np.abs(vals).max()), 1e-300)
+            say(f"{name}{suffix}: {len(times)} scales by the {smoother.what} in {time.perf_counter() - t0:.1f} s")
+            about = f"height along {up} + {recipe.noise:g} noise (seed {recipe.seed}); " if default else ""
+            out.append((name + suffix, G, times, eps, f"{about}{smoother.what}, {what}"))
+    return out
+
+
+class _Smoother:
+    """``Φ_t f`` by the recipe's method, and the scale grids of its spectrum (computed once)."""
+
+    def __init__(self, V, F, recipe, say):
+        self.V, self.F, self.recipe, self.say = V, F, recipe, say
+        self.kernel = None
+        self.flow = HeatFlow((V, F)) if recipe.method == "exact" else None
+        self.what = "exact heat flow" if recipe.method == "exact" else f"heat kernel of {recipe.k} eigenpairs"
+
+    def spectral(self):
+        if self.kernel is None:
+            t0 = time.perf_counter()
+            k = min(self.recipe.k, len(self.V) - 2)
+            self.kernel = HeatKernel(eigensolve((self.V, self.F), k=k))
+            self.say(f"eigensolve, {k} eigenpairs: {time.perf_counter() - t0:.1f} s")
+        return self.kernel
+
+    def grid(self, count, kind):
+        return self.spectral().scales(count, grid=kind)
+
+    def __call__(self, f, times):
+        if self.flow is not None:
+            return self.flow.apply(f, times).reshape(len(f), -1)
+        return self.spectral().smooth(f, times).reshape(len(f), -1)
