@@ -84,8 +84,9 @@ def repaired(V, F, values, why, what):
 
 
 def oriented(V, F):
-    """F with every component's faces wound consistently (Open3D's ``orient_triangles``) and each
-    closed component's normals outward (positive signed volume): the drawing's shading, level-set
+    """F with every component's faces wound consistently (Open3D's ``orient_triangles``, only where
+    some directed edge is repeated: a mesh wound consistently has each directed edge once) and
+    each closed component's normals outward (positive signed volume): the drawing's shading, level-set
     lifting and the matplotlib fallback's hidden points all read vertex normals, which an
     inward or mixed winding (common in OBJ/STL exports) would turn around or cancel. A mesh with
     non-manifold edges is returned as it is."""
@@ -94,13 +95,17 @@ def oriented(V, F):
     F = np.asarray(F, dtype=np.int64)
     if len(F) == 0:
         return F
-    legacy = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F.astype(np.int32)))
-    if not legacy.is_edge_manifold(allow_boundary_edges=True):
-        return F
-    if legacy.orient_triangles():
-        F = np.asarray(legacy.triangles, dtype=np.int64)
     n = len(V)
     E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    directed = np.sort(E[:, 0] * n + E[:, 1])
+    if (directed[1:] == directed[:-1]).any():  # not wound consistently (or an edge of 3+ faces): Open3D's BFS
+        legacy = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V),
+                                           o3d.utility.Vector3iVector(F.astype(np.int32)))
+        if not legacy.is_edge_manifold(allow_boundary_edges=True):
+            return F
+        if legacy.orient_triangles():
+            F = np.asarray(legacy.triangles, dtype=np.int64)
+            E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
     label = components(F, n)[1]  # the same parts as E's graph has
     face = label[F[:, 0]]
     c = V.mean(axis=0)

@@ -139,7 +139,7 @@ def page_html(scene: Scene) -> str:
         "title": html.escape(str(scene.name)),
         "meta": json.dumps(meta, allow_nan=False, separators=(",", ":")).replace("<", "\\u003c")
         .replace(">", "\\u003e").replace("&", "\\u0026"),
-        "data": base64.b64encode(gzip.compress(pack.bytes(), compresslevel=6, mtime=0)).decode("ascii"),
+        "data": base64.b64encode(gzip.compress(pack.bytes(), compresslevel=1, mtime=0)).decode("ascii"),
         "three": _three(),
         "script": _asset("page.js"),
     }
