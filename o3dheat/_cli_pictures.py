@@ -37,7 +37,8 @@ def _echo(start):
 
 
 def _common(p, what):
-    p.add_argument("--attribute", help=f"vertex attribute to {what} (default: the height along up + noise)")
+    p.add_argument("--attribute", help=f"vertex attribute to {what} (default: " + (
+        "the mesh's (n, T) attributes, else " if what == "show" else "") + "the height along up + noise)")
     p.add_argument("--column", type=int, metavar="N",
                    help="the column of a multi-column --attribute (0-based, -1 the last)")
     p.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from o3dheat._jit import any_compiled
-from o3dheat.geometry import as_arrays, decimate
+from o3dheat.geometry import as_arrays, decimate, height, up_axis
 from o3dheat.io import bumpy_torus, default_mesh, write_mesh  # noqa: F401 - bumpy_torus: run's example uses it (d.bumpy_torus)
 from o3dheat.pipelines import apply
 from o3dheat.spectral import HeatFlow, HeatKernel, eigensolve
@@ -45,7 +45,9 @@ def run(out: PathLike = "o3dheat-demo/bunny_heat.ply", k: int = 100, reduction: 
         Fraction of triangles removed by :func:`o3dheat.geometry.sampling.decimate` (quadric decimation
         gives an irregular, curvature-adaptive sampling); 0 keeps the mesh.
     noise : float
-        Standard deviation of the Gaussian noise, relative to the range of the height function.
+        Standard deviation of the Gaussian noise, relative to the range of the height (along the
+        up axis of :func:`o3dheat.geometry.up.up_axis`: y for the embedded bunny, an OBJ file; z for
+        a ``mesh`` given here).
     seed : int
         Seed of the noise (numpy's ``default_rng``).
     mesh : Open3D mesh, optional
@@ -73,9 +75,10 @@ def run(out: PathLike = "o3dheat-demo/bunny_heat.ply", k: int = 100, reduction: 
 
     timings = {}
     t0 = time.perf_counter()
-    name = "input"
+    name, up = "input", up_axis()[0]  # a mesh made in Python: z up
     if mesh is None:
         mesh, name = default_mesh()
+        up = up_axis("auto", "bunny.obj" if name == "bunny" else None)[0]  # pymeshlab's OBJ: y up
     V, F = as_arrays(mesh)
     timings["load"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -84,7 +87,7 @@ def run(out: PathLike = "o3dheat-demo/bunny_heat.ply", k: int = 100, reduction: 
     timings["resample"] = time.perf_counter() - t0
     spec = eigensolve((V, F), k=min(k, len(V)))
     timings["eigensolve"] = sum(v for key, v in spec.timings.items() if key != "cache")
-    r = _smooth(V, F, spec, _noisy_height(V, noise, seed), timings)
+    r = _smooth(V, F, spec, _noisy_height(V, noise, seed, up), timings)
     t0 = time.perf_counter()
     out = _write(out, V, F, r)
     timings["write"] = time.perf_counter() - t0
@@ -99,11 +102,12 @@ def run(out: PathLike = "o3dheat-demo/bunny_heat.ply", k: int = 100, reduction: 
             "timings": stages}
 
 
-def _noisy_height(V, noise, seed):
-    """The height along the longest axis plus Gaussian noise (relative to its range, seeded)."""
+def _noisy_height(V, noise, seed, up):
+    """The height along ``up`` (:mod:`o3dheat.geometry.up`'s rule) plus Gaussian noise (relative to
+    its range, seeded)."""
     rng = np.random.default_rng(seed)
-    height = V[:, int(np.argmax(np.ptp(V, axis=0)))]
-    return height + noise * np.ptp(height) * rng.standard_normal(len(V))
+    h = height(V, up)
+    return h + noise * np.ptp(h) * rng.standard_normal(len(V))
 
 
 def _smooth(V, F, spec, f, timings):

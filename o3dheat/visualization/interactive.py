@@ -58,7 +58,12 @@ class View:
         return f"View({self.scene.name}: {len(self.scene.V):,} vertices; {fields})"
 
     def html(self) -> str:
-        """The whole page as text (made once)."""
+        """The whole page as text (made once).
+
+        Examples
+        --------
+        See :func:`view`.
+        """
         if self._html is None:
             self._html = page_html(self.scene)
         return self._html
@@ -76,6 +81,15 @@ class View:
         Returns
         -------
         pathlib.Path
+
+        Examples
+        --------
+        >>> import os, tempfile, open3d as o3d, o3dheat
+        >>> m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)
+        >>> v = o3dheat.view(m, m.vertex.positions.numpy()[:, 2], [0.0, 0.1], tracks=False)
+        >>> path = v.save(os.path.join(tempfile.mkdtemp(), "sphere.html"))
+        >>> path.read_text().startswith("<!DOCTYPE html>")
+        True
         """
         if not isinstance(overwrite, bool):
             raise MeshError(f"overwrite must be True or False, got {overwrite!r}")

@@ -112,12 +112,18 @@ class Style:
         Inches per panel.
     suptitle : str, optional
         Above the panels.
-    label : str
-        The field's name on the colorbar.
+    label : str, optional
+        The colorbar's label (default: the field's name).
     renderer : {"auto", "raster", "matplotlib"}
         As for :func:`field`.
     counts : bool
         The legend counts the critical points (a single panel).
+
+    Examples
+    --------
+    >>> import o3dheat.visualization.plot as plot
+    >>> plot.Style(titles=["t1", "t10"], size=3.0).ncols is None
+    True
     """
 
     titles: Sequence[str] | None = None
@@ -126,7 +132,7 @@ class Style:
     shared_range: bool = True
     size: float = 3.5
     suptitle: str | None = None
-    label: str = "f"
+    label: str | None = None
     renderer: str = "auto"
     counts: bool = False
 
@@ -166,7 +172,8 @@ def draw(scene: Scene, columns: Sequence[int] | None = None, field: int | str = 
         if field not in names:
             raise MeshError(f"the scene has no field {field!r} (its fields: {', '.join(names)})")
         field = names.index(field)
-    values = scene.fields[checks.count(field, "field", minimum=0, maximum=len(names) - 1)].values
+    field = checks.count(field, "field", minimum=0, maximum=len(names) - 1)
+    values, label = scene.fields[field].values, style.label if style.label is not None else names[field]
     if columns is not None:
         columns = [checks.count(c, "column", minimum=0, maximum=values.shape[1] - 1) for c in columns]
         values = values[:, columns]
@@ -193,10 +200,10 @@ def draw(scene: Scene, columns: Sequence[int] | None = None, field: int | str = 
     axes = [_panel_axes(fig, (nrows, ncols, i + 1), p, r, frame, normals, scene.view, w, style.titles, i)
             for i, p in enumerate(panels)]
     if shared:
-        _layout.colorbar(fig, axes, panels[0], style.label, "right", values)
+        _layout.colorbar(fig, axes, panels[0], label, "right", values)
     else:
         for ax, p in zip(axes, panels, strict=True):
-            _layout.colorbar(fig, ax, p, style.label, "bottom", p.f)
+            _layout.colorbar(fig, ax, p, label, "bottom", p.f)
     _layout.legend(fig, panels, counts=style.counts)
     if style.suptitle:
         fig.suptitle(style.suptitle, fontsize=11)

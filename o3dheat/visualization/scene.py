@@ -54,7 +54,7 @@ class ScaleField:
         One per column: :func:`o3dheat.critical_points <o3dheat.topology.critical.critical_points>`
         of that column on the scene's surface (``counts`` is what the page's ``counts()`` returns).
     eps_inf : (T,) float64 ndarray or None
-        ``‖Φ_t f − f‖∞`` per column where the unsmoothed field is known, else None.
+        ``‖Φ_t f − f‖∞ / ‖f‖∞`` per column where the unsmoothed field is known, else None.
     label : str
         How the scales were made, in words (e.g. ``"exact heat flow, log grid"``).
     markers : tuple of CriticalPoints or None
@@ -150,7 +150,8 @@ class Recipe:
     max_faces : int or None
         A larger mesh is shown on a decimated copy with the fields transferred (None: all faces).
     column : int, optional
-        Of an (n, c) field, the column to smooth (default: the columns are the scales).
+        Of an (n, c) field, the column to smooth, 0-based, negative from the end (default: the
+        columns are the scales).
     noise, seed : float, int
         The default field: the height along ``up`` plus ``noise`` (relative to its range) Gaussian
         noise of this seed.
@@ -184,8 +185,8 @@ class Recipe:
         checks.count(self.k, "k")
         if self.max_faces is not None:
             checks.count(self.max_faces, "max_faces", minimum=100)
-        if self.column is not None:
-            checks.count(self.column, "column", minimum=0)
+        if self.column is not None and (isinstance(self.column, bool) or not isinstance(self.column, (int, np.integer))):
+            raise MeshError(f"column must be an integer (0-based, -1 the last), got {self.column!r}")
         if not isinstance(self.tracks, bool):
             raise MeshError(f"tracks must be True or False, got {self.tracks!r}")
         checks.count(self.levels, "levels", minimum=0, maximum=1000)
@@ -240,7 +241,8 @@ def build(mesh, field=None, t=None, recipe: Recipe | None = None, echo: Callable
     V, F, given = _cleaned(V0, F0, given, notes)
     fields = _smoothed(V, F, given, t, recipe, up, say)
     if recipe.max_faces is not None and len(F) > recipe.max_faces:
-        say(f"decimating {len(F):,} faces to {recipe.max_faces:,} for the picture (max_faces; None keeps all)")
+        say(f"decimating {len(F):,} faces to {recipe.max_faces:,} for the picture (max_faces, --max-faces; None "
+            "or 'none' keeps all)")
         Vd, Fd = decimate((V, F), target_faces=recipe.max_faces).arrays
         notes.append(f"shown on a decimated copy: {len(F):,} → {len(Fd):,} faces ({len(V):,} → {len(Vd):,} "
                      "vertices), the fields computed on the full mesh and transferred")
@@ -292,6 +294,8 @@ def _attributes(mesh):
 def _given_fields(mesh, field, n, recipe):
     """``[(name, values)]``: the fields asked for, checked (one line for a NaN, an unknown attribute)."""
     attrs = _attributes(mesh)
+    if field is None and recipe.column is not None:
+        raise MeshError(f"column={recipe.column} picks a column of a field: give the field (an attribute's name)")
     if field is None:
         many = {k: v for k, v in attrs.items() if v.ndim == 2 and v.shape[1] > 1 and np.issubdtype(v.dtype, np.floating)}
         if many and recipe.column is None:
@@ -306,9 +310,11 @@ def _given_fields(mesh, field, n, recipe):
         name, values = "f", field
     values = checks.field(values, n, f"field {name!r}" if isinstance(field, str) else "the field")
     if recipe.column is not None:
-        if values.ndim != 2 or recipe.column >= values.shape[1]:
-            raise MeshError(f"column {recipe.column} asked of {name!r}, which has shape {values.shape}")
-        values, name = values[:, recipe.column], f"{name}[{recipe.column}]"
+        c = recipe.column
+        if values.ndim != 2 or not -values.shape[1] <= c < values.shape[1]:
+            raise MeshError(f"column {c} asked of {name!r}, which has shape {values.shape}")
+        c = c % values.shape[1]
+        values, name = values[:, c], f"{name}[{c}]"
     return [(name, values)]
 
 

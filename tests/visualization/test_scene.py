@@ -57,6 +57,10 @@ def test_attributes_of_several_scales_are_shown_as_they_are_each_a_field():
     assert np.array_equal(s.fields[1].values, B) and np.isnan(s.fields[1].times).all()
     one = build(tmesh(V, F, f_smooth=A), "f_smooth", recipe=Recipe(column=1, tracks=False), t=[0.0, 0.1])
     assert one.fields[0].name == "f_smooth[1]" and np.allclose(one.fields[0].values[:, 0], A[:, 1])
+    last = build(tmesh(V, F, f_smooth=A), "f_smooth", recipe=Recipe(column=-1, tracks=False), t=[0.0, 0.1])
+    assert last.fields[0].name == "f_smooth[1]"
+    with pytest.raises(o3dheat.MeshError, match="column=1 picks a column of a field"):
+        build(tmesh(V, F, f_smooth=A), recipe=Recipe(column=1))
 
 
 @pytest.mark.parametrize("field, recipe, match", [
@@ -75,6 +79,7 @@ def test_bad_fields_are_refused_in_one_line(field, recipe, match):
 @pytest.mark.parametrize("kw, match", [({"method": "fast"}, "method must be"), ({"up": "w"}, "up must be"),
                                        ({"max_faces": 5}, "max_faces"), ({"cmap": "nope"}, "cmap"),
                                        ({"tracks": "yes"}, "tracks must be True or False"),
+                                       ({"column": "1"}, "column must be an integer"),
                                        ({"noise": -1}, "noise")])
 def test_bad_recipes_are_refused(kw, match):
     with pytest.raises(o3dheat.MeshError, match=match):
