@@ -72,7 +72,6 @@ def warm_up():
 
 def page_case(n, out):
     import o3dheat
-
     from o3dheat.spectral.cache import clear_cache
 
     V, F = bunny(n)
