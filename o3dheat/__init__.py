@@ -46,6 +46,20 @@ from .spectral import fem, heatflow, kernel, krylov  # noqa: E402, F401
 from .topology import approximation  # noqa: E402, F401
 from .visualization import figures, plot  # noqa: E402, F401
 
+
+def _short_names():
+    """``import o3dheat.plot`` (and the other short names above) imports the module at its one home
+    (``o3dheat.visualization.plot``): the same module object, registered under both names, so that
+    scripts written against the earlier flat layout keep working."""
+    import sys
+
+    for name in ("sampling", "batch", "cluster", "filters", "study", "fem", "heatflow", "kernel", "krylov",
+                 "approximation", "figures", "plot"):
+        sys.modules.setdefault(f"{__name__}.{name}", globals()[name])
+
+
+_short_names()
+
 try:  # one place for the version: pyproject.toml, through the installed package's metadata
     from importlib.metadata import PackageNotFoundError
     from importlib.metadata import version as _version

@@ -31,7 +31,9 @@ def read_obj(path):
     in the module's Notes)."""
     import open3d as o3d
 
-    v, vt, f = _obj_lines(path.read_bytes().decode("utf-8", errors="replace"))
+    # utf-8-sig: a byte-order mark (Windows tools write one) is not part of the first line's keyword,
+    # which would otherwise read "\ufeffv" and lose the first vertex (every index then off by one)
+    v, vt, f = _obj_lines(path.read_bytes().decode("utf-8-sig", errors="replace"))
     if not v:
         raise MeshError(f"{path}: no vertices ('v' lines) could be read (unreadable or empty OBJ)")
     if not f:

@@ -1087,3 +1087,15 @@ def test_colours_outside_0_1_are_clipped_as_open3d_writes_them(tmp_path, caplog)
         write_mesh(tmp_path / "exact.ply", m, lossless_colors=True)  # the copy keeps them
     assert "kept in o3dheat_colors_*" in caplog.text
     np.testing.assert_array_equal(read_mesh(tmp_path / "exact.ply").vertex.colors.numpy(), C)
+
+
+def test_obj_with_a_byte_order_mark_keeps_its_first_vertex(tmp_path):
+    """Issue 30: "\\ufeffv 0 0 0" was not a vertex line: the first vertex was lost and every index
+    shifted by one (silently, when the last vertex is unused)."""
+    body = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 5 5 5\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+    (tmp_path / "bom.obj").write_bytes(b"\xef\xbb\xbf" + body.encode())
+    (tmp_path / "plain.obj").write_text(body)
+    a, b = read_mesh(tmp_path / "bom.obj"), read_mesh(tmp_path / "plain.obj")
+    assert np.array_equal(a.vertex.positions.numpy(), b.vertex.positions.numpy())
+    assert a.vertex.positions.numpy()[0].tolist() == [0.0, 0.0, 0.0]
+    assert np.array_equal(a.triangle.indices.numpy(), b.triangle.indices.numpy())
