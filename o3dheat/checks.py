@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 
     from o3dheat.typing import FieldLike, TimesLike
 
-__all__ = ["values", "field", "count", "times", "tolerance", "vertex_set"]
+__all__ = ["values", "field", "flag", "count", "times", "tolerance", "vertex_set"]
 
 
 def values(x: Any) -> Any:
@@ -75,6 +75,28 @@ def field(f: FieldLike, n: int | None = None, name: str = "f", ndim: int | tuple
         first = int(np.flatnonzero(bad.reshape(len(arr), -1).any(axis=1))[0])
         raise MeshError(f"{name} has {int(bad.sum())} NaN or infinite values (first at vertex {first})")
     return arr
+
+
+def flag(x: Any, name: str, allow_none: bool = False) -> bool | None:
+    """``x`` as a bool (True, False, or numpy's), or a :class:`~o3dheat.errors.MeshError` naming
+    ``name``: a string such as ``"no"`` is truthy and would say the opposite of what it reads.
+
+    Examples
+    --------
+    >>> from o3dheat.checks import flag
+    >>> flag(True, "overwrite")
+    True
+    >>> flag("no", "overwrite")
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: overwrite must be True or False, got 'no' (str)
+    """
+    if x is None and allow_none:
+        return None
+    if not isinstance(x, (bool, np.bool_)):
+        raise MeshError(f"{name} must be True or False{' (or None)' if allow_none else ''}, got {x!r} "
+                        f"({type(x).__name__})")
+    return bool(x)
 
 
 def count(x: Any, name: str, minimum: int = 1, maximum: int = 1_000_000) -> int:

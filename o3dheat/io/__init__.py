@@ -8,7 +8,7 @@ Entry points: :func:`~o3dheat.io.meshes.read_mesh`, :func:`~o3dheat.io.meshes.re
 :func:`~o3dheat.io.samples.default_mesh`, :func:`~o3dheat.io.samples.bumpy_torus`
 (:mod:`o3dheat.io.samples`)."""
 
-from .files import atomic_write, atomic_write_text
+from .files import atomic_write, atomic_write_text, read_regular
 from .meshes import READERS, WRITERS, read_geometry, read_mesh, write_geometry, write_mesh
 from .samples import SAMPLES, bumpy_torus, default_mesh, sample_mesh
 from .toml import read_toml
@@ -17,6 +17,6 @@ from .toml import read_toml
 # the modules, as attributes of the package
 from . import files, meshes, samples, toml  # noqa: E402
 
-__all__ = ["READERS", "WRITERS", "atomic_write", "atomic_write_text", "read_geometry", "read_mesh", "read_toml",
+__all__ = ["READERS", "WRITERS", "atomic_write", "atomic_write_text", "read_regular", "read_geometry", "read_mesh", "read_toml",
            "write_geometry", "write_mesh", "SAMPLES", "bumpy_torus", "default_mesh", "sample_mesh",
            "files", "meshes", "samples", "toml"]

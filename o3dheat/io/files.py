@@ -1,4 +1,5 @@
-"""Atomic file writes: :func:`atomic_write` (binary), :func:`atomic_write_text` (UTF-8).
+"""Atomic file writes: :func:`atomic_write` (binary), :func:`atomic_write_text` (UTF-8); bounded
+reads of regular files only: :func:`read_regular`.
 
 A file is written to a temporary file in its folder, which then replaces it: a reader sees the
 old file or the new one, never half of one. Temporary files an interrupted writer left (older
@@ -23,7 +24,10 @@ if TYPE_CHECKING:  # o3dheat.typing imports Open3D (1.5 s): for annotations only
 
     from o3dheat.typing import PathLike
 
-__all__ = ["atomic_write", "atomic_write_text"]
+__all__ = ["atomic_write", "atomic_write_text", "read_regular"]
+
+#: Most bytes :func:`read_regular` reads by default (a chain, a spectrum, a key: far less).
+READ_LIMIT = 16 * 2**30
 
 log = logging.getLogger("o3dheat")
 
@@ -127,3 +131,80 @@ def atomic_write_text(path: PathLike, text: str) -> None:
     'λ₂ = 2\n'
     """
     atomic_write(path, lambda fh: fh.write(text.encode("utf-8")))
+
+
+def read_regular(path: PathLike, what: str = "file", limit: int = READ_LIMIT) -> bytes:
+    """The bytes of ``path``, which must be a regular file (through links) of at most ``limit``
+    bytes: a FIFO, a device (``/dev/zero``, ``/dev/urandom``) or a socket would block or never end.
+
+    The file is opened without blocking (``O_NONBLOCK``) and checked on the open descriptor, so a
+    FIFO swapped in after a check is still refused; at most ``limit + 1`` bytes are read.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What it is, for the messages ("spectrum file", "chain file", ...).
+    limit : int
+        Largest size accepted, in bytes.
+
+    Returns
+    -------
+    bytes
+
+    Raises
+    ------
+    NoSuchFile
+        It does not exist.
+    MeshError
+        A folder, not a regular file, or larger than ``limit``.
+    OSError
+        It cannot be read (permissions): the file system's error.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from o3dheat.io.files import read_regular
+    >>> p = os.path.join(tempfile.mkdtemp(), "a.txt"); _ = open(p, "w").write("hi")
+    >>> read_regular(p)
+    b'hi'
+    >>> read_regular("/dev/zero", "key file")
+    Traceback (most recent call last):
+    ...
+    o3dheat.errors.MeshError: /dev/zero is not a regular file (a character device): refused as a key file
+    """
+    import stat
+
+    from o3dheat.errors import NoSuchFile
+
+    path = Path(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        raise NoSuchFile(f"no such file: {path}") from None
+    except IsADirectoryError:
+        raise MeshError(f"{path} is a folder: give a {what}") from None
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise MeshError(f"{path} is a folder: give a {what}")
+        if not stat.S_ISREG(st.st_mode):
+            kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a character device" if stat.S_ISCHR(st.st_mode)
+                    else "a block device" if stat.S_ISBLK(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
+                    else "not a file")
+            raise MeshError(f"{path} is not a regular file ({kind}): refused as a {what}")
+        if st.st_size > limit:
+            raise MeshError(f"{path} has {st.st_size:,} bytes, more than a {what} can ({limit:,})")
+        chunks, size = [], 0
+        while size <= limit:
+            chunk = os.read(fd, min(1 << 24, limit + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+        if size > limit:
+            raise MeshError(f"{path} grew past {limit:,} bytes while read: refused as a {what}")
+        return b"".join(chunks)
+    finally:
+        os.close(fd)

@@ -17,8 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
+from o3dheat import checks
 from o3dheat.errors import MeshError, NoSuchFile
 
 from ._geometry import attributes
@@ -116,9 +115,8 @@ def write_geometry(path: PathLike, geometry: o3d.t.geometry.TriangleMesh | o3d.t
 
 
 def _write(path, attrs, F, binary, overwrite, lossless_colors=False):
-    for name, flag in (("binary", binary), ("overwrite", overwrite), ("lossless_colors", lossless_colors)):
-        if not isinstance(flag, (bool, np.bool_)):
-            raise MeshError(f"{name} must be True or False, got {flag!r} ({type(flag).__name__})")
+    for name, value in (("binary", binary), ("overwrite", overwrite), ("lossless_colors", lossless_colors)):
+        checks.flag(value, name)
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in WRITERS:

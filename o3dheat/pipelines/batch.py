@@ -55,7 +55,7 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
-from o3dheat import spectral
+from o3dheat import checks, spectral
 from o3dheat.errors import MeshError, SolverError
 from o3dheat.io import read_geometry, write_geometry
 from o3dheat.parallel import threads
@@ -246,9 +246,7 @@ def run(chain: Chain | Sequence, paths: PathLike | Sequence[PathLike], out_dir: 
     import pandas as pd  # here, not at the top: pandas costs ~0.4 s, which `import o3dheat` avoids
 
     for value, name in ((overwrite, "overwrite"), (binary, "binary"), (progress, "progress")):
-        if not isinstance(value, bool) and not (value is None and name == "progress"):
-            raise MeshError(f"{name} must be True or False{' (or None)' if name == 'progress' else ''}, "
-                            f"got {value!r}")
+        checks.flag(value, name, allow_none=name == "progress")
     chain, inputs, dsts, record = _preflight(chain, paths, out_dir, overwrite, suffix)
     rows = [[str(s), str(d), "skipped", 0.0, ""] for s, d in zip(inputs, dsts, strict=True)]
     todo = [i for i, d in enumerate(dsts) if overwrite or not d.exists()]

@@ -20,9 +20,11 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import io
 import logging
 import os
 import re
+import stat
 import tempfile
 import time
 import zipfile
@@ -31,8 +33,8 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from o3dheat.errors import MeshError, NoSuchFile
-from o3dheat.io import atomic_write
+from o3dheat.errors import MeshError
+from o3dheat.io import atomic_write, read_regular
 
 from . import fem
 from ._solvers import residuals
@@ -49,14 +51,48 @@ def entry_path(folder, key):
     return Path(folder) / f"spectrum-{key}.npz"
 
 
+def _writable_by_others(st):
+    """Whether a folder's mode lets other users replace what is in it (group or others may write,
+    without the sticky bit that keeps them to their own files)."""
+    return bool(st.st_mode & 0o022) and not st.st_mode & stat.S_ISVTX
+
+
+def _read_key(path):
+    """The key file's bytes, or None (with a warning) when it is not a regular file of this user
+    that no one else may read or write, as ssh treats its keys: a key another user could write
+    would let them sign entries o3dheat then serves."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOFOLLOW", 0))
+    try:
+        st = os.fstat(fd)
+        why = ("not a regular file" if not stat.S_ISREG(st.st_mode) else
+               f"owned by another user (uid {st.st_uid})" if st.st_uid != os.geteuid() else
+               f"readable or writable by others (mode {stat.S_IMODE(st.st_mode):o})" if st.st_mode & 0o077 else "")
+        if why:
+            log.warning("ignoring the cache key %s: %s; the folder's entries are not trusted (remove the key, "
+                        "and keep the cache folder to yourself)", path, why)
+            return None
+        return os.read(fd, 33)
+    finally:
+        os.close(fd)
+
+
 def folder_key(folder, create):
     """The folder's secret (bytes), made on first use when ``create``; None when it has none or
-    cannot be read. Made by a hard link of a complete file: a concurrent reader never sees a
-    partial key."""
+    cannot be read, or when it or the folder is open to other users (with a warning). Made by a
+    hard link of a complete file: a concurrent reader never sees a partial key."""
     path = Path(folder) / KEY_FILE
+    try:
+        if _writable_by_others(os.stat(folder)):
+            log.warning("not using the cache folder %s: other users may write in it (mode %o); use a folder "
+                        "of your own (chmod go-w)", folder, stat.S_IMODE(os.stat(folder).st_mode))
+            return None
+    except OSError:
+        return None
     for _ in range(2):
         try:
-            secret = path.read_bytes()
+            secret = _read_key(path)
+            if secret is None:
+                return None
             if len(secret) == 32:
                 return secret
             log.warning("ignoring the malformed cache key %s: the folder's entries are not trusted", path)
@@ -100,7 +136,8 @@ def cache_load(folder, key):
     if not path.exists():
         return None
     try:
-        with np.load(path, allow_pickle=False) as z:
+        data = read_regular(path, "cache entry")  # a FIFO or a link to a device: refused, not waited on
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
             arrays = {name: z[name] for name in z.files}
     except Exception as e:  # a corrupt cache file is ignored, never fatal
         log.warning("ignoring unreadable cache file %s (%s)", path, e)
@@ -207,10 +244,9 @@ def read_spectrum(path):
     :class:`~o3dheat.errors.NoSuchFile` when it is missing, the file system's OSError when it cannot
     be read (a folder, no permission)."""
     path = Path(path)
-    if not path.exists():
-        raise NoSuchFile(f"no such file: {path}")
+    data = read_regular(path, "spectrum file")  # a FIFO or a device is refused, not waited on
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
             a = {name: z[name] for name in z.files}
     except OSError:
         raise  # a file-system failure stays an OSError
@@ -226,8 +262,12 @@ def read_spectrum(path):
                               shape=tuple(int(x) for x in a[f"{name}_shape"]))
             A.check_format(full_check=True)  # indices in range: products with A read only its own memory
             fields[name] = A
+        faces = a.get("faces")
+        if faces is not None and not np.issubdtype(faces.dtype, np.integer):
+            raise MeshError(f"{path}: faces must be integer vertex indices, got dtype {faces.dtype} (a float "
+                            "index would be truncated to another vertex)")
         fields.update(mass_kind=str(a["mass_kind"]), backend=str(a["backend"]), sigma=float(a["sigma"]),
-                      faces=a.get("faces"), inverse_mass_bound=a.get("inverse_mass_bound"))
+                      faces=faces, inverse_mass_bound=a.get("inverse_mass_bound"))
     except (KeyError, ValueError, TypeError, IndexError) as e:
         raise MeshError(f"{path}: a broken spectrum file ({type(e).__name__}: {e})") from None
     if fields["eigenvectors"].ndim != 2 or fields["eigenvalues"].ndim != 1 or fields["eigenvalues"].size == 0:

@@ -167,7 +167,10 @@ class Spectrum:
         >>> bool(np.array_equal(t.eigenvectors, s.eigenvectors)), t.mass_kind
         (True, 'consistent')
         """
+        checks.flag(overwrite, "overwrite")
         path = Path(path)
+        if path.is_dir():
+            raise MeshError(f"{path} is a folder: give the spectrum's file name (e.g. {path / 'spectrum.npz'})")
         if path.suffix.lower() != ".npz":
             raise MeshError(f"a spectrum is saved as .npz: {path}")
         if path.exists() and not overwrite:

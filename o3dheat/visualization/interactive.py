@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from o3dheat import checks
 from o3dheat.errors import MeshError
 from o3dheat.io import atomic_write_text
 
@@ -91,8 +92,7 @@ class View:
         >>> path.read_text().startswith("<!DOCTYPE html>")
         True
         """
-        if not isinstance(overwrite, bool):
-            raise MeshError(f"overwrite must be True or False, got {overwrite!r}")
+        checks.flag(overwrite, "overwrite")
         path = Path(path)
         if path.is_dir():
             raise MeshError(f"{path} is a folder: give the page's file name (e.g. {path / 'view.html'})")

@@ -187,8 +187,7 @@ class Recipe:
             checks.count(self.max_faces, "max_faces", minimum=100)
         if self.column is not None and (isinstance(self.column, bool) or not isinstance(self.column, (int, np.integer))):
             raise MeshError(f"column must be an integer (0-based, -1 the last), got {self.column!r}")
-        if not isinstance(self.tracks, bool):
-            raise MeshError(f"tracks must be True or False, got {self.tracks!r}")
+        checks.flag(self.tracks, "tracks")
         checks.count(self.levels, "levels", minimum=0, maximum=1000)
         _layout.check_style(self.cmap)
         if isinstance(self.noise, bool) or not isinstance(self.noise, (int, float)) or not 0 <= self.noise < 1e6:

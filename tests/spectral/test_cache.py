@@ -162,3 +162,65 @@ def test_the_cache_reads_only_its_own_writes(tmp_path, irregular_mesh, caplog, m
         monkeypatch.setenv("O3DHEAT_CACHE_MAX_MB", bad)
         with pytest.raises(o3dheat.MeshError, match="O3DHEAT_CACHE_MAX_MB must be a number of megabytes >= 0"):
             C.cache_max_bytes()
+
+
+def test_a_cache_key_or_entry_that_is_not_a_private_regular_file_is_not_trusted_nor_waited_on(
+        tmp_path, irregular_mesh, caplog):
+    """Issue 30: a FIFO (or a link to /dev/zero) as the key or as an entry blocked eigensolve(cache=...)
+    or read without bound; a key other users could write, or one in a folder they can write, was
+    trusted, so a forged entry signed with it was served as a hit. Now ignored, with a warning, as ssh
+    does with its keys."""
+    import os
+    import threading
+
+    V, F = irregular_mesh
+    key = tmp_path / ".o3dheat-key"
+
+    def solve_in_time(folder):
+        out = []
+        worker = threading.Thread(target=lambda: out.append(o3dheat.eigensolve((V, F), k=6, cache=folder)),
+                                  daemon=True)
+        worker.start()
+        worker.join(60)
+        assert not worker.is_alive(), "eigensolve(cache=...) hangs"
+        return out[0]
+
+    os.mkfifo(key)
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        assert solve_in_time(tmp_path).timings["cache"] is False
+    assert "not a regular file" in caplog.text
+    key.unlink()
+    os.symlink("/dev/zero", key)
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        assert solve_in_time(tmp_path).timings["cache"] is False
+    assert "no readable key" in caplog.text  # a link is not followed to the key
+    key.unlink()
+    solve_in_time(tmp_path)  # a key of its own now, and an entry
+    (entry,) = tmp_path.glob("spectrum-*.npz")
+    assert solve_in_time(tmp_path).timings["cache"] is True
+    key.chmod(0o666)  # others may write the key: ignored
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        assert solve_in_time(tmp_path).timings["cache"] is False
+    assert "readable or writable by others" in caplog.text
+    key.chmod(0o600)
+    tmp_path.chmod(0o777)  # a folder others may write in: not used
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        assert solve_in_time(tmp_path).timings["cache"] is False
+    assert "other users may write in it" in caplog.text
+    tmp_path.chmod(0o700)
+    if os.geteuid() == 0:  # a key owned by another user: ignored
+        os.chown(key, 12345, -1)
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="o3dheat"):
+            assert solve_in_time(tmp_path).timings["cache"] is False
+        assert "owned by another user" in caplog.text
+        os.chown(key, 0, -1)
+    entry.unlink()
+    os.mkfifo(entry)  # an entry that is a FIFO: recomputed, not waited on
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="o3dheat"):
+        assert solve_in_time(tmp_path).timings["cache"] is False
+    assert "not a regular file" in caplog.text

@@ -497,3 +497,43 @@ def test_load_refuses_out_of_range_indices_and_other_crafted_fields(tmp_path, ir
         np.savez(q, **d)
         with pytest.raises(o3dheat.MeshError, match=msg):
             o3dheat.Spectrum.load(q)
+
+
+def test_load_refuses_float_or_text_faces_fifos_devices_and_lying_flags(tmp_path, irregular_mesh):
+    """Issue 30: float faces (0.5, 1.7) were truncated to other vertices, text faces gave a raw
+    UFuncTypeError, a FIFO blocked for good, save(overwrite="no") replaced the file ("no" is truthy),
+    save onto a folder gave a bare IsADirectoryError."""
+    import os
+    import threading
+
+    s = o3dheat.eigensolve(irregular_mesh, k=4, cache=False)
+    p = tmp_path / "s.npz"
+    s.save(p)
+    with np.load(p) as z:
+        data = dict(z)
+    for faces in (data["faces"] + 0.5, data["faces"].astype(str)):
+        q = tmp_path / "bad.npz"
+        np.savez(q, **dict(data, faces=faces))
+        with pytest.raises(o3dheat.MeshError, match="faces must be integer vertex indices"):
+            o3dheat.Spectrum.load(q)
+    fifo = tmp_path / "pipe.npz"
+    os.mkfifo(fifo)
+    outcome = []
+
+    def load(path):
+        try:
+            o3dheat.Spectrum.load(path)
+        except o3dheat.MeshError as e:
+            outcome.append(str(e))
+
+    for path, kind in ((fifo, "a FIFO"), ("/dev/zero", "a character device")):
+        worker = threading.Thread(target=load, args=(path,), daemon=True)
+        worker.start()
+        worker.join(10)
+        assert not worker.is_alive() and kind in outcome[-1]
+    before = p.read_bytes()
+    with pytest.raises(o3dheat.MeshError, match="overwrite must be True or False"):
+        s.save(p, overwrite="no")
+    with pytest.raises(o3dheat.MeshError, match="is a folder"):
+        s.save(tmp_path)
+    assert p.read_bytes() == before
