@@ -241,7 +241,10 @@ def _parse_filter(text):
         if key not in hints:
             fields = ", ".join(p.name for p in flt.describe(name)["parameters"])
             raise MeshError(f"filter {name!r} has no parameter {key!r}; its parameters: {fields}")
-        params[key] = flt.parse_value(value, hints.get(key, typing.Any))
+        try:
+            params[key] = flt.parse_value(value, hints.get(key, typing.Any))
+        except MeshError as e:
+            raise MeshError(f"-f {name}: parameter {key!r}: {e}") from None
     return name, params
 
 

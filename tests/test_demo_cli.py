@@ -36,7 +36,9 @@ def test_demo_writes_everything(tmp_path):
     assert np.allclose(m.vertex["f_exact"].numpy(), o3dheat.heat_flow((V, F), f, out["scales"]), atol=1e-9)
     cp = out["critical_points"]
     exact, truncated = cp[21:31], cp[1:11]
-    assert exact[0] > 3 * truncated[0] and exact == sorted(exact, reverse=True)  # t alone smooths
+    # t alone smooths; not monotone at every step: the heat flow on a surface can create critical
+    # points (the tracks' "creation" events: 28 -> 30 at one scale of this field)
+    assert exact[0] > 3 * truncated[0] and exact[-1] < exact[0] / 5 and exact[-1] == min(exact)
     assert "exact" in text and "certificate" in text and np.all(out["truncation_bound"] > 0)
 
 
@@ -296,3 +298,20 @@ def test_every_subcommand_is_dispatched_through_one_table():
     subs = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
     assert sorted(subs.choices) == sorted(COMMANDS)
     assert main([]) == 1  # no subcommand: the help, exit status 1
+
+
+def test_a_bad_filter_value_names_its_parameter_and_a_nan_attribute_its_vertex(tmp_path, capsys):
+    """Issue 30: '-f hks:scales=abc' said "cannot read 'abc' as an integer" without naming scales;
+    apply on a NaN attribute did not name the first bad vertex (figure did)."""
+    from o3dheat.io import write_mesh
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)
+    g = m.vertex.positions.numpy()[:, 2].astype(np.float64)
+    g[5] = np.nan
+    m.vertex["g"] = o3d.core.Tensor(g)
+    write_mesh(tmp_path / "nan.ply", m)
+    assert main(["apply", str(tmp_path / "nan.ply"), str(tmp_path / "o.ply"), "-f", "hks:scales=abc"]) == 2
+    assert "-f hks: parameter 'scales': cannot read 'abc' as an integer" in capsys.readouterr().err
+    assert main(["apply", str(tmp_path / "nan.ply"), str(tmp_path / "o.ply"), "-f", "heat_smooth:attribute=g,k=10"]) == 2
+    assert "attribute 'g' has 1 NaN or infinite values (first at vertex 5)" in capsys.readouterr().err
+    assert not (tmp_path / "o.ply").exists()

@@ -10,6 +10,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from o3dheat import checks
+from o3dheat.errors import MeshError
 
 from .mesh import as_arrays
 from .sampling import Resampled
@@ -63,6 +64,10 @@ def transfer(values: ArrayLike, source: MeshLike, target: MeshLike | np.ndarray)
     V, F = _surface_of(source)
     if isinstance(target, np.ndarray) and target.ndim == 2 and target.shape[1] == 3:
         pts = np.asarray(target, dtype=np.float64)
+        bad = ~np.isfinite(pts).all(axis=1)
+        if bad.any():
+            raise MeshError(f"target points: {int(bad.sum())} are NaN or infinite (first: point "
+                            f"{int(np.flatnonzero(bad)[0])}); there is no closest point to them")
     else:
         pts = _surface_of(target)[0]
     vals = checks.field(values, len(V), "values (one row per source vertex)")
@@ -115,5 +120,15 @@ def nearest(values: ArrayLike, source: ArrayLike, points: ArrayLike) -> np.ndarr
     [2.0]
     """
     vals = np.asarray(checks.values(values))
-    _, idx = cKDTree(np.asarray(source, dtype=np.float64)).query(np.asarray(points, dtype=np.float64))
+    try:
+        src = np.asarray(source, dtype=np.float64).reshape(-1, 3)
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    except (TypeError, ValueError):
+        raise MeshError("source and points must be (n, 3) arrays of coordinates") from None
+    if len(src) == 0 or len(vals) != len(src):
+        raise MeshError(f"nearest needs one value per source position and at least one: {len(vals)} values, "
+                        f"{len(src)} positions")
+    if not (np.isfinite(src).all() and np.isfinite(pts).all()):
+        raise MeshError("source positions and points must be finite (NaN or infinite coordinates given)")
+    _, idx = cKDTree(src).query(pts)
     return vals[idx]

@@ -42,10 +42,14 @@ def read_npz(path):
     if "positions" not in data:
         raise MeshError(f"{path}: no 'positions' array (not written by o3dheat?)")
     V = data.pop("positions")
+    if V.ndim != 2 or V.shape[1] != 3 or not (np.issubdtype(V.dtype, np.floating) or np.issubdtype(V.dtype, np.integer)):
+        raise MeshError(f"{path}: 'positions' must be an (n, 3) array of real numbers, got shape {V.shape} and "
+                        f"dtype {V.dtype}")
     n = len(V)
     if "indices" in data:
         F = data.pop("indices")
-        if F.ndim != 2 or F.shape[1] != 3 or (F.size and (F.min() < 0 or F.max() >= n)):
+        if (F.ndim != 2 or F.shape[1] != 3 or not np.issubdtype(F.dtype, np.integer)
+                or (F.size and (F.min() < 0 or F.max() >= n))):
             raise MeshError(f"{path}: 'indices' is not a valid (m, 3) array of vertex indices")
     else:
         F = None
@@ -57,5 +61,9 @@ def read_npz(path):
             raise MeshError(f"{path}: {key!r} is not a vertex attribute o3dheat writes (corrupt or crafted file)")
         if len(arr) != n:
             raise MeshError(f"{path}: {key!r} has {len(arr)} rows for {n} vertices")
+        if not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)
+                or arr.dtype == bool):
+            raise MeshError(f"{path}: {key!r} has dtype {arr.dtype}: a vertex attribute is numbers (integers, "
+                            "floats or booleans)")
         attrs[name] = o3d.core.Tensor(np.ascontiguousarray(arr))
     return geo

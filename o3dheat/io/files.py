@@ -158,9 +158,9 @@ def read_regular(path: PathLike, what: str = "file", limit: int = READ_LIMIT) ->
     NoSuchFile
         It does not exist.
     MeshError
-        A folder, not a regular file, or larger than ``limit``.
+        Not a regular file (a FIFO, a device, a socket), or larger than ``limit``.
     OSError
-        It cannot be read (permissions): the file system's error.
+        A folder (``IsADirectoryError``), or it cannot be read (permissions): the file system's error.
 
     Examples
     --------
@@ -174,6 +174,7 @@ def read_regular(path: PathLike, what: str = "file", limit: int = READ_LIMIT) ->
     ...
     o3dheat.errors.MeshError: /dev/zero is not a regular file (a character device): refused as a key file
     """
+    import errno
     import stat
 
     from o3dheat.errors import NoSuchFile
@@ -184,11 +185,11 @@ def read_regular(path: PathLike, what: str = "file", limit: int = READ_LIMIT) ->
     except FileNotFoundError:
         raise NoSuchFile(f"no such file: {path}") from None
     except IsADirectoryError:
-        raise MeshError(f"{path} is a folder: give a {what}") from None
+        raise IsADirectoryError(errno.EISDIR, f"{path} is a folder: give a {what}") from None
     try:
         st = os.fstat(fd)
-        if stat.S_ISDIR(st.st_mode):
-            raise MeshError(f"{path} is a folder: give a {what}")
+        if stat.S_ISDIR(st.st_mode):  # the file system's error, as open() gives it, with context
+            raise IsADirectoryError(errno.EISDIR, f"{path} is a folder: give a {what}")
         if not stat.S_ISREG(st.st_mode):
             kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a character device" if stat.S_ISCHR(st.st_mode)
                     else "a block device" if stat.S_ISBLK(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)

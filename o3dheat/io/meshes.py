@@ -118,6 +118,8 @@ def _write(path, attrs, F, binary, overwrite, lossless_colors=False):
     for name, value in (("binary", binary), ("overwrite", overwrite), ("lossless_colors", lossless_colors)):
         checks.flag(value, name)
     path = Path(path)
+    if path.is_dir():
+        raise MeshError(f"{path} is a folder: give a file name (e.g. {path / 'mesh.ply'})")
     suffix = path.suffix.lower()
     if suffix not in WRITERS:
         names = " or ".join(w.lstrip(".").upper() for w in WRITERS)

@@ -5,7 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from o3dheat.errors import MeshError, NoSuchFile
+from o3dheat.errors import MeshError
+
+from .files import read_regular
 
 try:
     import tomllib
@@ -48,10 +50,11 @@ def read_toml(path: PathLike) -> dict[str, Any]:
     {'filter': [{'name': 'scalar'}]}
     """
     path = Path(path)
-    if not path.exists():
-        raise NoSuchFile(f"cannot read {path}: no such file")
+    data = read_regular(path, "TOML file", limit=64 * 2**20)  # a FIFO or a device: refused, not waited on
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(data.decode("utf-8"))
+    except RecursionError:
+        raise MeshError(f"{path}: not valid TOML for o3dheat (nested too deeply)") from None
     except UnicodeDecodeError as e:
         raise MeshError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from e
     except tomllib.TOMLDecodeError as e:

@@ -23,6 +23,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 
+from o3dheat import checks
 from o3dheat.errors import MeshError
 from o3dheat.geometry import as_arrays, interpolation
 from o3dheat.geometry import mesh as meshes
@@ -255,9 +256,7 @@ class Site:
         a = a.astype(np.float64).reshape(self.n, -1) if a.ndim > 1 else a.astype(np.float64)
         if column is not None:
             a = one_column(a, name, column)
-        if not np.all(np.isfinite(a)):
-            raise MeshError(f"attribute {name!r} has NaN or infinite values")
-        return a
+        return checks.field(a, self.n, f"attribute {name!r}")  # names the count and the first bad vertex
 
     def scalar(self, name: str, column: int | None = None) -> np.ndarray:
         """One column of an attribute, (n,), by the filters' rule (:func:`o3dheat.pipelines.filters.one_column`):

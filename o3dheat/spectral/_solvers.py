@@ -119,6 +119,9 @@ def _solve_arpack(L, B, k, sigma, backend, seed):
                             v0=np.random.default_rng(seed).standard_normal(n), maxiter=max(1000, 20 * k))
     except spla.ArpackNoConvergence as e:
         raise ConvergenceError(f"the eigensolver did not converge for k={k}: {e}") from e
+    except spla.ArpackError as e:  # e.g. a shift so far from the spectrum that L - sigma B is sigma B to rounding
+        raise ConvergenceError(f"ARPACK failed for k={k} with the shift sigma={sigma:.3g}: {e} (choose a shift "
+                               "near 0, below the smallest eigenvalue, or method='lanczos')") from e
     return lam, X, fac.backend, t1 - t0, time.perf_counter() - t1
 
 

@@ -121,7 +121,8 @@ def diffuse(mesh: MeshLike, f: FieldLike, dt: float, steps: int, scheme: str = "
     if not isinstance(scheme, str) or scheme not in SCHEMES:
         raise MeshError(f"unknown scheme {scheme!r}: use one of {', '.join(SCHEMES)}")
     fem.check_mass_kind(mass)
-    if not (np.isscalar(dt) and np.isfinite(dt) and dt > 0):
+    if (isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating))
+            or not (np.isfinite(dt) and dt > 0)):
         raise MeshError(f"dt must be a positive number, got {dt!r}")
     steps = checks.count(steps, "steps", minimum=0)
     prep = prepare(mesh)

@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
-from o3dheat.errors import MeshError
+from o3dheat.errors import MeshError, OutOfMemory
 from o3dheat.geometry import _loops as loops
 from o3dheat.geometry._tables import edges, unit_scale, vertex_normals
 
@@ -210,8 +210,12 @@ def operators(V: ArrayLike, F: ArrayLike, mass: str = "consistent", pattern: tup
     (6.0, 6.0)
     """
     check_mass_kind(mass)
-    L, B, areas, lumped = _assembled(np.asarray(V, dtype=np.float64), F, mass == "consistent", pattern)
-    return L, _mass(mass, B, areas, lumped), areas
+    try:
+        L, B, areas, lumped = _assembled(np.asarray(V, dtype=np.float64), F, mass == "consistent", pattern)
+        return L, _mass(mass, B, areas, lumped), areas
+    except MemoryError as e:  # numba's and numpy's: the error of every o3dheat stage that runs out of memory
+        raise OutOfMemory(f"out of memory assembling the operators of {len(V):,} vertices ({e}): decimate the "
+                          "mesh or allow more memory") from e
 
 
 def _mass(kind, B, areas, lumped):

@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from o3dheat import checks, parallel
-from o3dheat.errors import MeshError
+from o3dheat.errors import MeshError, OutOfMemory
 from o3dheat.geometry import Prepared, prepare
 from o3dheat.typing import FieldLike, MeshLike, TimesLike
 
@@ -316,7 +316,11 @@ class HeatFlow:
         c, T = F.shape[1], len(times)
         check_memory(8 * (len(prep.V) + self.n) * c * T, f"the result ({c} fields x {T} times)",
                      "ask for fewer fields or times at once")
-        U, report = self._flow(F, times, tol, int(max_steps))
+        try:
+            U, report = self._flow(F, times, tol, int(max_steps))
+        except MemoryError as e:  # numba's or numpy's allocation: said as the eigensolver says it
+            raise OutOfMemory(f"out of memory in the heat flow of {self.n:,} vertices and {F.shape[1]} field(s) "
+                              f"({e}): fewer fields or times at once, a decimated mesh, or more memory") from e
         out = prep.expand(U.reshape(len(prep.V), c, T))
         if f.ndim == 1:
             out = out[:, 0, :]

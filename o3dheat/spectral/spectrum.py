@@ -341,7 +341,8 @@ def eigensolve(mesh: MeshLike, k: int = 100, mass: str = "consistent", sigma: fl
     r = len(V)
     if k > r:
         raise MeshError(f"k={k} exceeds the number of (referenced) vertices {r}: ask for k <= {r}")
-    if sigma is not None and not (np.isfinite(sigma) and sigma < 0):
+    if sigma is not None and (isinstance(sigma, bool) or not isinstance(sigma, (int, float, np.integer, np.floating))
+                              or not (np.isfinite(sigma) and sigma < 0)):
         raise MeshError(f"sigma must be a negative number (L - sigma B must be positive definite), got {sigma}")
     cache_dir = disk_folder(cache)
     key = spectrum_key(prep.V, prep.F, k, mass, method, tol, sigma, seed, block) if cache_dir is not None else None

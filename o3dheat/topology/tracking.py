@@ -174,7 +174,11 @@ class Tracks:
         >>> len(tr.features(0)), len(tr.features())     # the bump's maximum and a saddle do not last
         (4, 2)
         """
-        scale = range(len(self.times))[scale]
+        T = len(self.times)
+        if isinstance(scale, bool) or not isinstance(scale, (int, np.integer)) or not -T <= scale < T:
+            raise MeshError(f"scale must be an index of the {T} scales (0 to {T - 1}, or negative from the end), "
+                            f"got {scale!r}")
+        scale = range(T)[scale]
         keep = (self.first == 0) & (self.last >= scale)
         return np.unique(self.vertex[keep, 0])
 
@@ -313,7 +317,8 @@ def _checked(S, F, t, radius):
     V = None if S.V is None else np.asarray(S.V, dtype=np.float64)
     if radius is None:
         radius = 10 * (np.linalg.norm(V[S.E[:, 0]] - V[S.E[:, 1]], axis=1).mean() if V is not None else 1.0)
-    elif not (np.isfinite(radius) and radius > 0):
+    elif (isinstance(radius, bool) or not isinstance(radius, (int, float, np.integer, np.floating))
+          or not (np.isfinite(radius) and radius > 0)):
         raise MeshError(f"radius must be a positive number, got {radius!r}")
     return times, Fa, V, radius
 

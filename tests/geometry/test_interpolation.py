@@ -50,3 +50,16 @@ def test_transfer_is_the_identity_on_the_same_mesh():
     r = decimate((V, F), reduction=0.5)  # off the surface: within the decimation's deviation
     assert np.allclose(transfer(V, (V, F), r), r.V, atol=0.02)
     assert np.allclose(transfer(r.V[:, 0], r, r.mesh), r.V[:, 0], atol=1e-10)
+
+
+def test_transfer_to_non_finite_points_and_nearest_of_nothing_are_one_line_errors():
+    """Issue 30: transfer to NaN/inf points gave IndexError 4294967295; nearest([], empty, V) an
+    IndexError."""
+    V, F = icosphere(2)
+    for bad in (np.full((3, 3), np.nan), np.r_[V[:2], [[np.inf, 0, 0]]]):
+        with pytest.raises(o3dheat.MeshError, match="NaN or infinite"):
+            transfer(V[:, 2], (V, F), bad)
+    with pytest.raises(o3dheat.MeshError, match="at least one"):
+        nearest([], np.zeros((0, 3)), V)
+    with pytest.raises(o3dheat.MeshError, match="finite"):
+        nearest([1.0], [[np.nan, 0, 0]], V)

@@ -1099,3 +1099,21 @@ def test_obj_with_a_byte_order_mark_keeps_its_first_vertex(tmp_path):
     assert np.array_equal(a.vertex.positions.numpy(), b.vertex.positions.numpy())
     assert a.vertex.positions.numpy()[0].tolist() == [0.0, 0.0, 0.0]
     assert np.array_equal(a.triangle.indices.numpy(), b.triangle.indices.numpy())
+
+
+def test_crafted_npz_and_writing_onto_a_folder_are_one_line_errors(tmp_path):
+    """Issue 30: an NPZ with a string attribute, complex or 0-d positions gave Open3D's RuntimeError
+    or a TypeError; write_mesh onto a folder an IsADirectoryError from the temporary file's rename."""
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 6)
+    V, F = m.vertex.positions.numpy().astype(np.float64), m.triangle.indices.numpy()
+    cases = {"text": dict(positions=V, indices=F, vertex_name=np.array(["a"] * len(V))),
+             "complex": dict(positions=V.astype(complex), indices=F),
+             "scalar": dict(positions=np.array(1.0), indices=F),
+             "float faces": dict(positions=V, indices=F + 0.5)}
+    for name, arrays in cases.items():
+        np.savez(tmp_path / f"{name}.npz", **arrays)
+        with pytest.raises(o3dheat.MeshError, match="dtype|positions|indices"):
+            read_mesh(tmp_path / f"{name}.npz")
+    (tmp_path / "dir.ply").mkdir()
+    with pytest.raises(o3dheat.MeshError, match="is a folder"):
+        write_mesh(tmp_path / "dir.ply", m)

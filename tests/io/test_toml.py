@@ -21,3 +21,20 @@ def test_unreadable_toml_is_the_file_systems_error(tmp_path):
         read_toml(tmp_path / "missing.toml")
     with pytest.raises(IsADirectoryError):
         read_toml(tmp_path)
+
+
+def test_a_deeply_nested_or_special_file_is_one_line_not_a_recursion_or_a_hang(tmp_path):
+    """Issue 30: a chain TOML nested 10,000 levels gave a RecursionError; a FIFO would block."""
+    import os
+
+    from o3dheat.io import read_toml
+
+    deep = tmp_path / "deep.toml"
+    deep.write_text("a = " + "[" * 10000 + "]" * 10000 + "\n")
+    with pytest.raises(o3dheat.MeshError, match="nested too deeply"):
+        read_toml(deep)
+    with pytest.raises(o3dheat.MeshError, match="nested too deeply"):
+        o3dheat.filters.Chain.load(deep)
+    os.mkfifo(tmp_path / "pipe.toml")
+    with pytest.raises(o3dheat.MeshError, match="not a regular file \\(a FIFO\\)"):
+        read_toml(tmp_path / "pipe.toml")

@@ -129,3 +129,11 @@ def test_explicit_step_limit_formula():
     from o3dheat.spectral.diffusion import explicit_step_limit
 
     assert explicit_step_limit(2.0) == 2.0 and explicit_step_limit(0.0) == np.inf
+
+
+def test_a_text_time_step_is_a_one_line_error():
+    """Issue 30: diffuse(dt='0.1') gave a raw TypeError from numpy."""
+    V, F = icosphere(1)
+    for dt in ("0.1", True, None):
+        with pytest.raises(o3dheat.MeshError, match="dt must be a positive number"):
+            o3dheat.diffuse((V, F), V[:, 2], dt=dt, steps=2)

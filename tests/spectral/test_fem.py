@@ -134,3 +134,18 @@ def test_operators_equal_the_separate_functions(mesh, kind):
     assert abs(B - B0).max() == 0
     np.testing.assert_array_equal(a, voronoi_areas(V, F))
     assert L.has_canonical_format and B.format == "csc"
+
+
+def test_out_of_memory_in_the_assembly_is_said_as_out_of_memory(monkeypatch):
+    """Issue 30: under a memory cap numba's MemoryError escaped fem.operators (and heat_flow) raw."""
+    from o3dheat.errors import OutOfMemory
+    from o3dheat.spectral import fem as fem_module
+
+    V, F = icosphere(1)
+
+    def full(*args):
+        raise MemoryError("cannot allocate")
+
+    monkeypatch.setattr(fem_module, "_assembled", full)
+    with pytest.raises(OutOfMemory, match="out of memory assembling the operators of 42 vertices"):
+        fem_module.operators(V, F)

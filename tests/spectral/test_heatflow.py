@@ -417,3 +417,18 @@ def test_a_fan_of_many_faces_assembles_like_libigl():
     assert abs(L + igl.cotmatrix(V, F)).max() < 1e-9 * abs(L).max()
     with pytest.raises(MeshError, match="face indices must lie in"):
         fem.stiffness_matrix(V[:4], np.array([[0, 1, 2], [1, 3, 4]]))
+
+
+def test_out_of_memory_in_the_flow_is_said_as_out_of_memory(monkeypatch):
+    """Issue 30: under a memory cap numba's MemoryError escaped heat_flow raw."""
+    from o3dheat.errors import OutOfMemory
+
+    V, F = icosphere(2)
+    flow = HeatFlow((V, F), cache=False)
+
+    def full(*args):
+        raise MemoryError("cannot allocate")
+
+    monkeypatch.setattr(flow, "_flow", full)
+    with pytest.raises(OutOfMemory, match="out of memory in the heat flow of 162 vertices"):
+        flow.apply(V[:, 2], [0.1])

@@ -280,3 +280,15 @@ def test_without_positions_a_saddle_on_its_vertex_continues():
     S = o3dheat.topology.Surface.from_faces(len(x), F)
     tr = o3dheat.track_critical_points(S, np.c_[x, 2 * x, 3 * x], [0.0, 0.1, 0.2])
     assert len(tr) == 4 and not tr.events
+
+
+def test_text_radius_and_a_scale_past_the_end_are_one_line_errors():
+    """Issue 30: radius='1' gave a TypeError, Tracks.features(99) an IndexError."""
+    V, F = icosphere(2)
+    G = np.c_[V[:, 2], V[:, 2] / 2]
+    with pytest.raises(o3dheat.MeshError, match="radius must be a positive number"):
+        o3dheat.track_critical_points((V, F), G, [0.0, 1.0], radius="1")
+    tr = o3dheat.track_critical_points((V, F), G, [0.0, 1.0])
+    with pytest.raises(o3dheat.MeshError, match="scale must be an index of the 2 scales"):
+        tr.features(99)
+    assert np.array_equal(tr.features(-2), tr.features(0))
