@@ -35,6 +35,9 @@ The page defines ``window.o3dheat`` (for tests and notebooks)::
                           -Infinity: all, Infinity: those alive at the last scale); returns it
     o3dheat.resetView()   the initial view
     o3dheat.frames        the number of frames drawn so far
+    o3dheat.deferred      whether scale changes recolour a stored picture of the surface (software WebGL,
+                          >= 100k faces: a full-screen pass instead of redrawing every triangle)
+    o3dheat.setDeferred(b)  a debug switch of that path; o3dheat.timing.path: "deferred" or "plain"
     o3dheat.timing        {data, firstFrame}: ms since navigation; {update, submit}: ms of the last
                           setScale (the page's own work; handing the frame to WebGL)
 

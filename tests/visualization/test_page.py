@@ -248,6 +248,87 @@ def test_the_scale_changes_the_picture_and_the_counts(opened):
         f"{field.critical[0].counts[0]} minim")
 
 
+def near(a, b, tolerance=2) -> float:
+    """The fraction of pixels that differ by more than ``tolerance`` (in any channel) between two pictures."""
+    return float(np.any(np.abs(a.astype(int) - b.astype(int)) > tolerance, axis=2).mean())
+
+
+def plain_picture(page, i):
+    """The picture of scale ``i`` drawn the plain way (every triangle redrawn), then the deferred way back."""
+    assert page.js("o3dheat.setDeferred(false)") is False
+    page.set_scale(i)
+    assert page.js("o3dheat.timing.path") == "plain"
+    img = page.picture()
+    assert page.js("o3dheat.setDeferred(true)") is True
+    return img
+
+
+@pytest.fixture
+def deferred(opened):
+    """The page of ``opened`` recolouring by its deferred pass (on by default from 100k faces in software
+    WebGL: forced on for the small test meshes), as it was afterwards."""
+    scene, page = opened
+    default = page.js("o3dheat.deferred")
+    assert default is False  # a small mesh: redrawn the plain way ...
+    assert page.js("o3dheat.setDeferred(true)") is True  # ... but SwiftShader can draw the deferred way
+    yield scene, page
+    page.js("(on) => o3dheat.setDeferred(on)", default)
+
+
+def test_the_recoloured_picture_is_the_plain_one(deferred):
+    """A scale change recolours the G-buffer of the resting view: the same picture as drawing every
+    triangle, overlays (level sets, markers, tracks) included."""
+    scene, page = deferred
+    for i in (0, -1, 2):
+        page.set_scale(i)
+        assert page.js("o3dheat.timing.path") == "deferred"
+        recoloured = page.picture()
+        plain = plain_picture(page, i)
+        assert drawn(recoloured) > 0.05
+        assert near(recoloured, plain) < 1e-4, f"scale {i}"
+    page.js("o3dheat.setRange('scale')")  # colours over this scale's range, and its level sets
+    page.set_scale(1)
+    assert page.js("o3dheat.timing.path") == "deferred"
+    recoloured = page.picture()
+    assert near(recoloured, plain_picture(page, 1)) < 1e-4
+    page.js("o3dheat.setRange('global')")
+
+
+def test_orbiting_after_scale_changes_draws_the_new_view(deferred):
+    """Scale changes, then an orbit (drawn the plain way while the camera moves), then scale changes
+    again: the plain way until the camera has rested, then by recolouring the new view's G-buffer, not
+    the old one's."""
+    scene, page = deferred
+    rest = "() => new Promise((r) => setTimeout(r, 400))"  # longer than the page waits to redraw the G-buffer
+    page.set_scale(0)
+    page.set_scale(-1)
+    before = page.picture()
+    canvas = page.page.locator("#o3h-canvas")
+    canvas.focus()
+    for _ in range(3):
+        canvas.press("ArrowLeft")
+        page.js("() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)))")
+    assert changed(before, page.picture()) > 0.01  # the view turned
+    # a scale change while the camera moves: the G-buffer is out of date, not used
+    assert page.js("""() => { const c = document.getElementById('o3h-canvas');
+        c.dispatchEvent(new KeyboardEvent('keydown', {key: 'ArrowLeft'}));
+        o3dheat.setScale(0); return o3dheat.timing.path; }""") == "plain"
+    page.set_scale(0)
+    moving = page.picture()
+    page.js(rest)  # the camera rests: the G-buffer of the new view is drawn
+    page.set_scale(-1)
+    assert page.js("o3dheat.timing.path") == "deferred"
+    last = page.picture()
+    assert changed(before, last) > 0.01
+    assert near(last, plain_picture(page, -1)) < 1e-4
+    assert near(moving, plain_picture(page, 0)) < 1e-4
+    page.js("o3dheat.resetView()")
+    page.js(rest)
+    page.set_scale(-1)
+    assert page.js("o3dheat.timing.path") == "deferred"
+    assert near(page.picture(), before) < 1e-4
+
+
 def test_the_page_asks_for_nothing(opened):
     _, page = opened
     assert page.outside() == [] and page.blocked == []

@@ -3,6 +3,9 @@
  * them with three.js (the global THREE, inlined above). Nothing is fetched.
  * Scripting API: window.o3dheat (see the "Scripting" block of the page and page.py's docstring);
  * setScale, setField and the other setters are synchronous: they update and redraw before returning.
+ * Debugging: o3dheat.deferred (true when recolouring uses the deferred pass below),
+ * o3dheat.setDeferred(on) (false: always draw the plain way; true: draws the G-buffer now; returns the
+ * state in use) and o3dheat.timing.path ("deferred" or "plain": how the last frame was drawn).
  */
 (function () {
   "use strict";
@@ -141,9 +144,10 @@
     geom.setIndex(new THREE.BufferAttribute(data("faces"), 1));
     geom.computeVertexNormals();
     normals = geom.getAttribute("normal").array;
-    const colors = new Uint8Array(4 * n);
+    // the vertex colours (RGBA bytes), padded to whole rows of the deferred pass's colour texture
+    const colors = new Uint8Array(4 * TEX_W * Math.ceil(n / TEX_W));
     col32 = new Uint32Array(colors.buffer);
-    const attr = new THREE.BufferAttribute(colors, 4, true);
+    const attr = new THREE.BufferAttribute(colors.subarray(0, 4 * n), 4, true);
     attr.setUsage(THREE.DynamicDrawUsage);
     geom.setAttribute("color", attr);
     geom.computeBoundingSphere();
@@ -176,6 +180,16 @@
     pickMarker.material.uniforms.uColor.value = new THREE.Color(0.08, 0.08, 0.08);
     pickMarker.visible = false;
     scene.add(pickMarker);
+
+    // the deferred pass: where float colour buffers can be drawn to; on by default for a software
+    // rasterizer (no multisampling there; a GPU draws the plain way, antialiased, in a few ms) and a
+    // surface of DEFERRED_FACES faces or more (below, redrawing them costs less than the full-screen pass)
+    const gl = renderer.getContext(), maxTex = gl.getParameter(gl.MAX_TEXTURE_SIZE);
+    deferred.able = renderer.extensions.has("EXT_color_buffer_float") && meta.m < 1 << 24 &&
+      Math.ceil(Math.max(n, meta.m) / TEX_W) <= maxTex;
+    deferred.on = deferred.able && api.software && meta.m >= DEFERRED_FACES;
+    // its geometry lives on the GPU only: after a lost context, the page draws the plain way
+    canvas.addEventListener("webglcontextlost", () => { deferred.able = deferred.on = deferred.valid = false; });
   }
 
   function lines(material) {
@@ -282,7 +296,8 @@
     }
     const qs = scaleValues();
     for (let i = 0; i < n; i++) col32[i] = table[qs[i]];
-    geom.getAttribute("color").needsUpdate = true;
+    geom.getAttribute("color").needsUpdate = true; // uploaded when next drawn the plain way
+    if (deferred.colors) deferred.colors.needsUpdate = true; // ... or the deferred way
   }
 
   let levelBuffer = new Float32Array(3 * 4096);
@@ -507,9 +522,170 @@
     pickMarker.scale.setScalar(0.6 * markerRadius());
   }
 
+  // ------------------------------------------------------------------ deferred recolouring
+  // A software rasterizer (SwiftShader) takes 85-170 ms to draw 400k triangles, too slow to redraw the
+  // surface at each scale change. While the camera rests, the surface is drawn once into an offscreen
+  // G-buffer: per pixel (RGBA32F) the triangle's index, two barycentric coordinates (perspective-correct,
+  // as the rasterizer interpolates the plain path's vertex colours) and the shading factor (0: no
+  // surface), and the depth. A recolouring then draws only a full-screen pass: it reads the triangle's
+  // three vertices (a texture of the faces) and their colours (a texture of the n vertex colours, made
+  // by the same LUT as the plain path's colour attribute), interpolates, shades and writes the
+  // G-buffer's depth, and the overlays (level sets, markers, tracks, the picked vertex) are drawn over it
+  // as in the plain path, hidden where the surface is in front. Moving the camera or resizing draws the
+  // plain way (so does a recolouring until the G-buffer is redrawn) and redraws the G-buffer once the
+  // camera has rested for GBUFFER_DELAY ms.
+  const TEX_W = 2048, TEX_SHIFT = 11; // the width of the data textures (vertex colours, faces)
+  const GBUFFER_DELAY = 200;
+  // SwiftShader on 2 cores: the full-screen pass ~17 ms at 1200 x 800; the plain way ~6 ms at 9k faces,
+  // ~20 ms at 40k, ~115 ms at 400k
+  const DEFERRED_FACES = 100000;
+  const deferred = { able: false, on: false, valid: false, timer: 0, gScene: null, target: null,
+                     cScene: null, cCamera: null, quad: null, colors: null, faces: null, compiled: false };
+  const G_VERTEX = `
+    varying vec3 vNormal; varying vec2 vBary; flat varying float vTri;
+    void main() { // not indexed: corner k of triangle t is vertex 3 t + k
+      int t = gl_VertexID / 3, k = gl_VertexID - 3 * t;
+      vTri = float(t);
+      vBary = vec2(k == 1 ? 1.0 : 0.0, k == 2 ? 1.0 : 0.0);
+      vNormal = normalMatrix * normal;
+      gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0);
+    }`;
+  const G_FRAGMENT = `
+    varying vec3 vNormal; varying vec2 vBary; flat varying float vTri;
+    uniform vec3 uLight; uniform float uAmbient;
+    void main() { // the shading factor exactly as FRAGMENT computes it
+      vec3 nrm = normalize(vNormal);
+      if (!gl_FrontFacing) nrm = -nrm;
+      float d = max(dot(nrm, uLight), 0.0);
+      gl_FragColor = vec4(vTri, vBary, uAmbient + (1.0 - uAmbient) * d);
+    }`;
+  const C_VERTEX = `void main() { gl_Position = vec4(position.xy, 0.0, 1.0); }`;
+  const C_FRAGMENT = `
+    uniform highp sampler2D uG, uDepth, uColors; uniform highp usampler2D uFaces;
+    vec3 color(uint v) { return texelFetch(uColors, ivec2(int(v & ${TEX_W - 1}u), int(v >> ${TEX_SHIFT}u)), 0).rgb; }
+    void main() {
+      ivec2 p = ivec2(gl_FragCoord.xy);
+      vec4 g = texelFetch(uG, p, 0);
+      if (g.a == 0.0) discard; // the background (cleared)
+      int t = int(g.r);
+      uvec3 f = texelFetch(uFaces, ivec2(t & ${TEX_W - 1}, t >> ${TEX_SHIFT}), 0).xyz;
+      vec3 c = (1.0 - g.g - g.b) * color(f.x) + g.g * color(f.y) + g.b * color(f.z);
+      gl_FragColor = vec4(c * g.a, 1.0);
+      gl_FragDepth = texelFetch(uDepth, p, 0).r;
+    }`;
+
+  // The deferred pass's geometry, textures and scenes (made once, at the first G-buffer).
+  function deferredSetUp() {
+    const F = geom.index.array, m = meta.m, P = new Float32Array(9 * m), N = new Float32Array(9 * m);
+    for (let c = 0; c < 3 * m; c++) {
+      const v = 3 * F[c], o = 3 * c;
+      P[o] = positions[v]; P[o + 1] = positions[v + 1]; P[o + 2] = positions[v + 2];
+      N[o] = normals[v]; N[o + 1] = normals[v + 1]; N[o + 2] = normals[v + 2];
+    }
+    const g = new THREE.BufferGeometry(), drop = function () { this.array = null; }; // kept on the GPU only
+    g.setAttribute("position", new THREE.BufferAttribute(P, 3).onUpload(drop));
+    g.setAttribute("normal", new THREE.BufferAttribute(N, 3).onUpload(drop));
+    g.boundingSphere = geom.boundingSphere.clone(); // the same points (three sorts by it: not from P)
+    const gm = new THREE.Mesh(g, shaded({ vertexShader: G_VERTEX, fragmentShader: G_FRAGMENT,
+                                          polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 1,
+                                          side: mesh.material.side }));
+    gm.frustumCulled = false;
+    deferred.gScene = new THREE.Scene().add(gm);
+
+    const texture = (array, rows, format, type, internal) => {
+      const t = new THREE.DataTexture(array, TEX_W, rows, format, type);
+      t.internalFormat = internal;
+      t.minFilter = t.magFilter = THREE.NearestFilter;
+      t.generateMipmaps = false;
+      t.needsUpdate = true;
+      return t;
+    };
+    deferred.colors = texture(new Uint8Array(col32.buffer), col32.length / TEX_W, THREE.RGBAFormat,
+                              THREE.UnsignedByteType, "RGBA8");
+    const rows = Math.ceil(m / TEX_W), faces = new Uint32Array(4 * TEX_W * rows);
+    for (let t = 0; t < m; t++) {
+      faces[4 * t] = F[3 * t]; faces[4 * t + 1] = F[3 * t + 1]; faces[4 * t + 2] = F[3 * t + 2];
+    }
+    deferred.faces = texture(faces, rows, THREE.RGBAIntegerFormat, THREE.UnsignedIntType, "RGBA32UI");
+    const quad = new THREE.Mesh(new THREE.PlaneGeometry(2, 2), new THREE.ShaderMaterial({
+      vertexShader: C_VERTEX, fragmentShader: C_FRAGMENT, depthTest: true, depthWrite: true,
+      depthFunc: THREE.AlwaysDepth,
+      uniforms: { uG: { value: null }, uDepth: { value: null }, uColors: { value: deferred.colors },
+                  uFaces: { value: deferred.faces } },
+    }));
+    quad.frustumCulled = false;
+    deferred.cScene = new THREE.Scene().add(quad);
+    deferred.cCamera = new THREE.OrthographicCamera(-1, 1, 1, -1, 0, 1);
+    deferred.quad = quad;
+  }
+
+  // Draws the G-buffer for the current view when it is out of date; false when it cannot be drawn.
+  const bufferSize = new THREE.Vector2();
+  function gbuffer() {
+    if (deferred.valid) return true;
+    clearTimeout(deferred.timer);
+    if (!deferred.gScene) deferredSetUp();
+    const { x: w, y: h } = renderer.getDrawingBufferSize(bufferSize);
+    let target = deferred.target;
+    if (!target || target.width !== w || target.height !== h) {
+      if (target) { target.depthTexture.dispose(); target.dispose(); }
+      target = deferred.target = new THREE.WebGLRenderTarget(w, h, {
+        type: THREE.FloatType, format: THREE.RGBAFormat, minFilter: THREE.NearestFilter,
+        magFilter: THREE.NearestFilter, generateMipmaps: false,
+        depthTexture: new THREE.DepthTexture(w, h, THREE.UnsignedIntType) }); // 24 bits, as the canvas's
+      deferred.quad.material.uniforms.uG.value = target.texture;
+      deferred.quad.material.uniforms.uDepth.value = target.depthTexture;
+      renderer.setRenderTarget(target);
+      const gl = renderer.getContext();
+      if (gl.checkFramebufferStatus(gl.FRAMEBUFFER) !== gl.FRAMEBUFFER_COMPLETE) { // cannot draw to floats
+        renderer.setRenderTarget(null);
+        deferred.able = deferred.on = false;
+        return false;
+      }
+    }
+    renderer.setRenderTarget(target);
+    renderer.setClearColor(0x000000, 0);
+    renderer.render(deferred.gScene, camera);
+    renderer.setRenderTarget(null);
+    renderer.setClearColor(0xffffff, 1);
+    deferred.valid = true;
+    return true;
+  }
+
+  function composite() {
+    renderer.render(deferred.cScene, deferred.cCamera); // clears to white, then the surface
+    renderer.autoClear = false;
+    mesh.visible = false; // the overlays, over the surface's depth
+    try { renderer.render(scene, camera); } finally { mesh.visible = true; renderer.autoClear = true; }
+  }
+
+  // the camera or the size changed: the G-buffer is out of date; redraw it once the camera rests
+  function viewChanged() {
+    deferred.valid = false;
+    if (!deferred.on) return;
+    clearTimeout(deferred.timer);
+    deferred.timer = setTimeout(() => {
+      if (!(deferred.on && cur && gbuffer())) return;
+      if (!deferred.compiled) { // the full-screen pass's program and textures, ready for the first recolouring
+        renderer.compile(deferred.cScene, deferred.cCamera);
+        renderer.initTexture(deferred.colors);
+        renderer.initTexture(deferred.faces);
+        deferred.compiled = true;
+      }
+      renderer.getContext().flush(); // hand the G-buffer to the GPU now (else it waits for the next frame)
+    }, GBUFFER_DELAY);
+  }
+
   // ------------------------------------------------------------------ drawing and the view
-  function draw() {
-    renderer.render(scene, camera);
+  // build: draw the G-buffer now if it is out of date (else the plain way until it is redrawn)
+  function draw(build = false) {
+    if (deferred.on && (deferred.valid || build) && gbuffer()) {
+      composite();
+      api.timing.path = "deferred";
+    } else {
+      renderer.render(scene, camera);
+      api.timing.path = "plain";
+    }
     api.frames++;
   }
   let pending = false;
@@ -522,6 +698,7 @@
   function resize() {
     const box = $("o3h-view"), w = Math.max(box.clientWidth, 1), h = Math.max(box.clientHeight, 1);
     renderer.setSize(w, h, false);
+    viewChanged();
     // the colorbar covers the right: the picture's centre moves left by half its width
     const shift = w > 3 * CB_WIDTH ? CB_WIDTH : 0;
     camera.aspect = (w + shift) / h;
@@ -544,6 +721,7 @@
     camera.near = Math.max(far * 1e-4, camera.position.length() - 2 * meta.radius);
     camera.far = far;
     camera.updateProjectionMatrix();
+    viewChanged();
   }
 
   // Frames every vertex (all the parts) from scene.view, leaving room for the colorbar.
@@ -788,6 +966,15 @@
     return state.life;
   };
   api.resetView = () => { loaded(); resetView(); };
+  Object.defineProperty(api, "deferred", { get: () => deferred.on, enumerable: true });
+  api.setDeferred = function (on) { // a debugging switch: false draws every frame the plain way
+    loaded();
+    deferred.on = !!on && deferred.able;
+    deferred.valid = false;
+    clearTimeout(deferred.timer);
+    draw(true);
+    return deferred.on;
+  };
 
   start().catch(fail);
 })();
