@@ -457,7 +457,7 @@
     $("o3h-t").textContent = (t === null ? `column ${j + 1} (time unknown)` : `t = ${fmt(t)}`) +
       ` · scale ${j + 1} of ${f.T}`;
     const eps = f.eps_inf ? f.eps_inf[j] : null;
-    $("o3h-eps").textContent = f.eps_inf ? `ε∞ = ‖Φt f − f‖∞ = ${fmt(eps)}` : "";
+    $("o3h-eps").textContent = f.eps_inf ? `ε∞ = ‖Φt f − f‖∞ / ‖f‖∞ = ${fmt(eps)}` : "";
     const box = $("o3h-counts");
     box.textContent = "";
     f.counts[j].forEach((c, k) => {
@@ -839,7 +839,8 @@
       canvas.style.cursor = "grab";
       if (pointers.size === 0 && moved < 4 && e.type === "pointerup") { // a click: pin or release a vertex
         const v = pick(e.clientX, e.clientY);
-        showVertex(v, v >= 0);
+        if (readout.pinned && v === readout.vertex) showVertex(-1, false); // a click on the pinned vertex releases it
+        else showVertex(v, v >= 0);
       }
     };
     canvas.addEventListener("pointerup", up);
