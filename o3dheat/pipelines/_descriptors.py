@@ -17,13 +17,19 @@ from threadpoolctl import threadpool_limits
 from o3dheat.geometry import resample, transfer
 from o3dheat.parallel import threads
 from o3dheat.spectral import HeatFlow, fem, heat_kernel, mass_matrix, variants
-from o3dheat.topology import Surface, critical_points, track_critical_points
+from o3dheat.spectral.signatures import wks_energies
+from o3dheat.topology import Surface, critical_points, persistence, track_critical_points
 
 log = logging.getLogger("o3dheat")
 
 #: what a study measures: one HKS per form of :data:`o3dheat.spectral.variants.HKS_FORMS`, then the others
 DESCRIPTORS = tuple(f"hks_{form}" for form in variants.HKS_FORMS) + (
-    "smooth_height", "smooth_curvature", "eigenvalues", "critical_points", "track_lifetime")
+    "wks", "si_hks", "smooth_height", "smooth_curvature", "eigenvalues", "critical_points", "track_lifetime",
+    "diagram")
+#: the descriptors compared without a transfer between the samplings (values, not fields)
+UNTRANSFERRED = ("eigenvalues", "critical_points", "track_lifetime", "diagram")
+#: SI-HKS frequencies kept by a study
+SI_HKS_FREQUENCIES = 8
 COLUMNS = ["mesh", "resampling", "kind", "kernel", "descriptor", "scale", "t", "rel_l2", "rel_linf",
            "vertices", "error"]
 
@@ -40,10 +46,10 @@ def compute(V, F, kernels, descriptors, k, times, axis, grid="paper", scales=10,
     k = min(k, len(V) - 2)
     height = aligned(V[:, axis])
     curvature = aligned(fem.mean_curvature(V, F)) if "smooth_curvature" in descriptors else None
-    topo = {"critical_points", "track_lifetime"} & set(descriptors)
+    topo = {"critical_points", "track_lifetime", "diagram"} & set(descriptors)
     surface = Surface.from_faces(len(V), F, V) if topo else None
     out, used = {}, {}
-    smooth_only = {"smooth_height", "smooth_curvature", "critical_points", "track_lifetime"}
+    smooth_only = {"smooth_height", "smooth_curvature", "critical_points", "track_lifetime", "diagram"}
     for kern in kernels:
         spectral = method == "spectral" or times is None or not set(descriptors) <= smooth_only
         K = heat_kernel((V, F), k=k, variant=kern) if spectral else None
@@ -51,7 +57,7 @@ def compute(V, F, kernels, descriptors, k, times, axis, grid="paper", scales=10,
         S = K if method == "spectral" or not smooth_only & set(descriptors) else HeatFlow((V, F), variant=kern,
                                                                                         cache=False)
         # the smoothed height, once per kernel: a descriptor itself and the field of the topological ones
-        needs_height = {"smooth_height", "critical_points", "track_lifetime"} & set(descriptors)
+        needs_height = {"smooth_height", "critical_points", "track_lifetime", "diagram"} & set(descriptors)
         H = S.smooth(height, t) if needs_height else None
         for d in descriptors:
             if d.startswith("hks_"):
@@ -67,7 +73,39 @@ def compute(V, F, kernels, descriptors, k, times, axis, grid="paper", scales=10,
                                          for i in range(len(t))], dtype=np.float64)
             elif d == "track_lifetime":
                 out[kern, d] = track_critical_points(surface, H, t)
+            elif d == "wks":  # the reference's log-energies and width on every sampling, as its times
+                e, sigma = used[kern, d] = (wks_energies(K, max(scales, 2)) if times is None else times[kern, d])
+                e = np.clip(e, *np.log(K.rates[K.rates > 1e-9 * K.rates.max()][[0, -1]]))  # this spectrum's ends
+                out[kern, d] = K.wks(e, sigma)
+            elif d == "si_hks":
+                out[kern, d] = K.si_hks(SI_HKS_FREQUENCIES)
+            elif d == "diagram":
+                out[kern, d] = [finite_diagram(persistence(surface, H[:, i])) + (float(np.ptp(H[:, i])),)
+                                for i in range(len(t))]
     return out, used
+
+
+def finite_diagram(d):
+    """``(dim 0, dim 1)``: the finite pairs of a :class:`~o3dheat.topology.diagrams.PersistenceDiagram` as
+    (birth, death) of sublevel persistence: (minimum, saddle) and (saddle, maximum). The essential
+    classes (global extrema, the loops of the genus) are left out: every sampling of one surface
+    has the same, and their values only restate the field's range."""
+    one = d.intervals(1)
+    return d.intervals(0), one[:, ::-1].copy()
+
+
+def diagram_distances(mine, ref):
+    """``(Wasserstein, bottleneck)`` of two samplings' diagrams at one scale (:func:`finite_diagram`
+    plus the range), each the larger of dimensions 0 and 1 (gudhi's Hera Wasserstein of order 1,
+    relative error 1e-6, and its exact bottleneck distance), over the reference field's range."""
+    import gudhi
+    import gudhi.hera
+
+    span = ref[2] if ref[2] > 0 else 1.0
+    w = max(gudhi.hera.wasserstein_distance(a, b, order=1.0, internal_p=np.inf, delta=1e-6)
+            for a, b in zip(mine[:2], ref[:2], strict=True))
+    bn = max(gudhi.bottleneck_distance(a, b, 0.0) for a, b in zip(mine[:2], ref[:2], strict=True))
+    return w / span, bn / span
 
 
 def lifetime_errors(tracks, ref, extent, top=10):
@@ -171,6 +209,14 @@ def task(mesh_name, res_name, spec, ref, cfg):
                 elif d == "track_lifetime":
                     l2, inf = lifetime_errors(value, base, np.ptp(ref["V"], axis=0))
                     scales, ts = range(1, len(ref["times"][kern]) + 1), ref["times"][kern]
+                elif d == "diagram":  # rel_l2: Wasserstein, rel_linf: bottleneck (an L∞ distance)
+                    l2, inf = np.array([diagram_distances(m, b) for m, b in zip(value, base, strict=True)]).T
+                    scales, ts = range(1, len(ref["times"][kern]) + 1), ref["times"][kern]
+                elif d in ("wks", "si_hks"):  # columns: energies, frequencies
+                    back = transfer(value, r, ref["V"])
+                    l2, inf = relative_errors(back, base, ref["areas"])
+                    scales = range(1, value.shape[1] + 1)
+                    ts = ref["times"][kern, d][0] if d == "wks" else np.full(value.shape[1], np.nan)
                 else:
                     back = transfer(value, r, ref["V"])
                     l2, inf = relative_errors(back, base, ref["areas"])

@@ -16,7 +16,10 @@ vertices (:func:`o3dheat.geometry.interpolation.transfer`) and measures how far 
 Kernels (the ``kernel`` column): the variants of :data:`o3dheat.spectral.variants.VARIANTS` (all of them by
 default), each the heat kernel of its own eigenproblem ``L x = λ W x``, ``K_t = X D_t Xᵀ W``.
 Descriptors (:data:`DESCRIPTORS`): "hks_<form>" for each HKS form of
-:data:`o3dheat.spectral.variants.HKS_FORMS` ("hks_density", "hks_paper"), "smooth_height" (``Φ_t`` of the
+:data:`o3dheat.spectral.variants.HKS_FORMS` ("hks_density", "hks_paper"), "wks" (the wave kernel
+signature at ``max(scales, 2)`` log-energies of the reference's spectrum, Aubry's width, the same
+energies on every resampling: the ``t`` column holds them), "si_hks" (the scale-invariant HKS, 8
+frequencies, one row each), "smooth_height" (``Φ_t`` of the
 height along the reference's longest axis), "smooth_curvature" (``Φ_t`` of the FEM mean
 curvature), "eigenvalues" (λ_2..λ_k of the kernel's own eigenproblem, one row with scale 0),
 "critical_points" (the number of critical points of the smoothed height; both metrics are
@@ -27,7 +30,12 @@ are each matched to the nearest track of the same kind alive at j on the resampl
 the reference's bounding-box diagonal; with ``L = t_last / t_j`` the factor of time a track lives
 on from j (its last scale capped at the grid's end), the error of a track is
 ``|log L − log L_ref| / log(t_T / t_j)`` (0 at the last scale), 1 when nothing matched; rel_l2 is
-the root mean square of the errors, rel_linf their largest).
+the root mean square of the errors, rel_linf their largest) and "diagram" (the persistence diagram
+of the smoothed height at each scale, its finite pairs in sublevel form, against the reference's,
+no transfer: they live in value space; rel_l2 the Wasserstein distance of order 1 (gudhi's Hera,
+relative error 1e-6), rel_linf the bottleneck distance (gudhi's, exact), each the larger over
+dimensions 0 and 1, over the range of the reference's field at that scale). :func:`ranking` ranks
+every descriptor and kernel by stability per resampling kind.
 
 Times: each kernel's scales are computed once, from its own spectrum on the reference sampling
 (the paper's grid ``t_i = (i/10)/λ_k`` by default, or the log grid), and applied unchanged to
@@ -68,7 +76,7 @@ from o3dheat.typing import MeshLike, PathLike
 from ._descriptors import COLUMNS, DESCRIPTORS, failed, reference, task
 from .cluster import progress_bar, session, task_error
 
-__all__ = ["robustness_study", "DESCRIPTORS", "COLUMNS", "load_config"]
+__all__ = ["robustness_study", "DESCRIPTORS", "COLUMNS", "load_config", "ranking"]
 
 log = logging.getLogger("o3dheat")
 
@@ -460,3 +468,44 @@ def _builtin(src):
             raise MeshError(f"{src!r}: the size after @ must be a number of faces") from None
         return decimate(mesh, target_faces=faces).mesh
     return mesh
+
+
+def ranking(table: pd.DataFrame, metric: str = "rel_l2") -> pd.DataFrame:
+    """Every (descriptor, kernel) of a study ranked by stability per resampling kind: the median of
+    ``metric`` over the meshes, resamplings of that kind and scales (energies, frequencies), the
+    smallest first (rank 1: the most stable).
+
+    The metrics are all relative discrepancies (module docstring), so they compare across
+    descriptors, with one caveat stated in ``docs/details/studies.md``: "critical_points" and
+    "diagram" measure counts and persistence in value space, the others fields brought back to the
+    reference vertices.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        :func:`robustness_study`'s table (failed rows are left out).
+    metric : {"rel_l2", "rel_linf"}
+        The column ranked.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``kind, rank, descriptor, kernel, median, rows``, sorted by kind then rank.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from o3dheat.pipelines.study import ranking
+    >>> t = pd.DataFrame(dict(kind="jitter", descriptor=["wks", "wks", "si_hks"], kernel="weighted",
+    ...                       rel_l2=[0.1, 0.3, 0.05], error=""))
+    >>> ranking(t)[["rank", "descriptor", "median"]].values.tolist()
+    [[1, 'si_hks', 0.05], [2, 'wks', 0.2]]
+    """
+    if metric not in ("rel_l2", "rel_linf"):
+        raise MeshError(f"metric must be 'rel_l2' or 'rel_linf', got {metric!r}")
+    ok = table[table["error"].fillna("") == ""]
+    g = ok.groupby(["kind", "descriptor", "kernel"])[metric]
+    out = g.median().rename("median").to_frame().join(g.size().rename("rows")).reset_index()
+    out = out.sort_values(["kind", "median", "descriptor", "kernel"], kind="stable")
+    out.insert(1, "rank", out.groupby("kind").cumcount() + 1)
+    return out.reset_index(drop=True)

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from o3dheat.topology import Tracks
     from o3dheat.typing import FieldLike
 
-__all__ = ["scale_space", "persistence_diagram", "study", "lifetime_chart"]
+__all__ = ["scale_space", "persistence_diagram", "study", "study_ranking", "lifetime_chart"]
 
 
 def _scale_ticks(ax, t):
@@ -196,6 +196,64 @@ def persistence_diagram(diagram: PersistenceDiagram, f: FieldLike | None = None,
     ax.set_title(title or "persistence of the sublevel sets of f", fontsize=10)
     ax.legend(fontsize=7, loc="lower right")
     return fig
+
+
+def study_ranking(ranked: pd.DataFrame, metric: str = "rel_l2", title: str | None = None) -> Figure:
+    """Descriptors and kernels ranked by stability, one panel per resampling kind: horizontal bars
+    of the median discrepancy (log scale), the most stable at the top, from
+    :func:`o3dheat.pipelines.study.ranking`.
+
+    Parameters
+    ----------
+    ranked : pandas.DataFrame
+        ``ranking(table)``: columns ``kind, rank, descriptor, kernel, median``.
+    metric : str
+        The metric ranked (the axis label).
+    title : str, optional
+        Written above the panels.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import pandas as pd, o3dheat.visualization.charts as charts
+    >>> r = pd.DataFrame(dict(kind=["jitter"] * 2, rank=[1, 2], descriptor=["si_hks", "wks"],
+    ...                       kernel="weighted", median=[0.05, 0.2]))
+    >>> [t.get_text() for t in charts.study_ranking(r).axes[0].get_yticklabels()]
+    ['si_hks · weighted', 'wks · weighted']
+    """
+    from matplotlib.figure import Figure
+
+    kinds = list(dict.fromkeys(ranked["kind"]))
+    if not kinds:
+        raise MeshError("nothing to rank: the study has no successful row")
+    rows = max(int((ranked["kind"] == k).sum()) for k in kinds)
+    fig = Figure(figsize=(4.2 * len(kinds), 0.6 + 0.22 * rows), layout="constrained")
+    floor = max(float(ranked["median"][ranked["median"] > 0].min()) / 3 if (ranked["median"] > 0).any() else 1e-12,
+                1e-16)
+    for i, kind in enumerate(kinds):
+        ax = fig.add_subplot(1, len(kinds), i + 1)
+        r = ranked[ranked["kind"] == kind].sort_values("rank")
+        colors = [_kernel_color(k) for k in r["kernel"]]
+        ax.barh(np.arange(len(r)), np.maximum(r["median"].to_numpy(), floor), color=colors, left=0)
+        ax.set_yticks(np.arange(len(r)), [f"{d} · {k}" for d, k in zip(r["descriptor"], r["kernel"], strict=True)],
+                      fontsize=7)
+        ax.set_ylim(len(r) - 0.5, -0.5)
+        ax.set_xscale("log")
+        ax.set_title(kind, fontsize=9)
+        ax.set_xlabel(f"median {metric}", fontsize=8)
+        ax.tick_params(axis="x", labelsize=7)
+    fig.suptitle(title or "stability across resamplings (most stable at the top)", fontsize=10)
+    return fig
+
+
+def _kernel_color(kernel):
+    """A kernel's colour, as :func:`study` draws it: the paper's black, the others in matplotlib's
+    cycle in the order of :data:`o3dheat.spectral.variants.VARIANTS`."""
+    names = list(VARIANTS)
+    return "gray" if kernel not in names else "black" if names.index(kernel) == 0 else f"C{names.index(kernel) - 1}"
 
 
 def study(table: pd.DataFrame, descriptor: str = "hks_density", metric: str = "rel_l2",

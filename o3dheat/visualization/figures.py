@@ -21,6 +21,7 @@ from o3dheat import checks
 from o3dheat.errors import MeshError
 from o3dheat.geometry import as_arrays, check_mesh, decimate, height, prepare, transfer, up_axis
 from o3dheat.io import atomic_write, atomic_write_text
+from o3dheat.pipelines.study import ranking
 from o3dheat.spectral import HeatFlow, HeatKernel, diffuse, eigensolve, heat_flow, heat_kernel
 from o3dheat.topology import Surface, feature_driven, persistence, simplify_critical_points, track_critical_points
 from o3dheat.topology import scale_space as hierarchy
@@ -425,5 +426,9 @@ def study_figures(table: pd.DataFrame, out: PathLike) -> list[Path]:
     for d in sorted(ok["descriptor"].unique()):
         path = Path(out) / f"study_{d}.png"
         _save(charts.study(table, descriptor=d), path)
+        written.append(path)
+    if len(ok) and ok["descriptor"].nunique() * ok["kernel"].nunique() > 1:  # something to rank
+        path = Path(out) / "study_ranking.png"
+        _save(charts.study_ranking(ranking(ok)), path)
         written.append(path)
     return written

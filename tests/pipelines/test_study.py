@@ -25,8 +25,10 @@ def sequential(tmp_path_factory):
 def test_table_shape_and_values(sequential):
     out, t = sequential
     assert list(t.columns) == COLUMNS and (t["error"] == "").all()
-    per_scale = [d for d in DESCRIPTORS if d != "eigenvalues"]
-    assert len(t) == len(MESHES) * len(RES) * len(KERNELS) * (len(per_scale) * 3 + 1)
+    from o3dheat.pipelines._descriptors import SI_HKS_FREQUENCIES
+
+    per_scale = [d for d in DESCRIPTORS if d not in ("eigenvalues", "si_hks")]  # si_hks: one row per frequency
+    assert len(t) == len(MESHES) * len(RES) * len(KERNELS) * (len(per_scale) * 3 + 1 + SI_HKS_FREQUENCIES)
     assert set(t["kernel"]) == set(KERNELS) and set(t["kind"]) == {"decimate", "jitter", "subdivide"}
     assert np.all(t["rel_l2"] >= 0) and np.all(np.isfinite(t["rel_l2"]))
     # midpoint subdivision keeps the surface: smoothed fields move little
@@ -354,3 +356,55 @@ def test_track_lifetime_on_a_bunny():
     assert t["rel_l2"].between(0, 1).all() and (t["rel_l2"] <= t["rel_linf"] + 1e-12).all()
     assert t.loc[t["resampling"] == "same", "rel_linf"].max() == 0
     assert t.loc[t["resampling"] != "same", "rel_l2"].mean() < 0.5
+
+
+def test_diagram_descriptor_is_gudhis_distance_on_the_lower_star_diagrams():
+    """Issue 31: the "diagram" descriptor compares persistence diagrams, no transfer: its pairs are
+    gudhi's own lower-star persistence of the field (an independent computation), and its distances
+    gudhi's bottleneck and Hera Wasserstein on them, over the reference field's range."""
+    gudhi = pytest.importorskip("gudhi")
+    import gudhi.hera
+
+    from o3dheat.geometry import resample
+    from o3dheat.pipelines._descriptors import diagram_distances, finite_diagram
+
+    def lower_star(V, F, f):
+        st = gudhi.SimplexTree()
+        for i, v in enumerate(f):
+            st.insert([i], filtration=float(v))
+        for a, b in {tuple(sorted(e)) for tri in F for e in ((tri[0], tri[1]), (tri[1], tri[2]), (tri[0], tri[2]))}:
+            st.insert([int(a), int(b)], filtration=float(max(f[a], f[b])))  # before the triangles: their own value
+        for tri in F:
+            st.insert([int(x) for x in tri], filtration=float(f[tri].max()))
+        st.make_filtration_non_decreasing()
+        st.compute_persistence()
+        return [st.persistence_intervals_in_dimension(d) for d in (0, 1)]
+
+    V, F = torus(1.0, 0.4, 24, 12)
+    r = resample((V, F), "jitter", amount=0.3)
+    rng = np.random.default_rng(0)
+    f = V[:, 0] + 0.3 * V[:, 2] + 0.05 * rng.standard_normal(len(V))
+    g = r.V[:, 0] + 0.3 * r.V[:, 2] + 0.05 * rng.standard_normal(len(r.V))
+    ours = [finite_diagram(o3dheat.persistence((V, F), f)) + (float(np.ptp(f)),),
+            finite_diagram(o3dheat.persistence((r.V, r.F), g)) + (float(np.ptp(g)),)]
+    for (d0, d1, _), (W, FF, h) in zip(ours, [(V, F, f), (r.V, r.F, g)], strict=True):
+        ref0, ref1 = (x[np.isfinite(x[:, 1])] for x in lower_star(W, FF, h))
+        assert gudhi.bottleneck_distance(d0, ref0, 0.0) < 1e-12 and gudhi.bottleneck_distance(d1, ref1, 0.0) < 1e-12
+    w, b = diagram_distances(ours[1], ours[0])
+    span = np.ptp(f)
+    assert np.isclose(b, max(gudhi.bottleneck_distance(ours[1][i], ours[0][i], 0.0) for i in (0, 1)) / span)
+    assert np.isclose(w, max(gudhi.hera.wasserstein_distance(ours[1][i], ours[0][i], order=1.0, delta=1e-6)
+                             for i in (0, 1)) / span, rtol=1e-5)
+    assert 0 < b <= w
+
+
+def test_the_new_descriptors_in_a_study():
+    t = robustness_study({"sphere": icosphere(2)}, {"dec": {"kind": "decimate", "reduction": 0.5}}, kernels="weighted",
+                         descriptors=["wks", "si_hks", "diagram"], scheduler="sequential", progress=False, **SMALL)
+    assert (t["error"] == "").all() and set(t["descriptor"]) == {"wks", "si_hks", "diagram"}
+    assert np.all(np.isfinite(t["rel_l2"])) and np.all(t["rel_l2"] >= 0)
+    wks = t[t["descriptor"] == "wks"]
+    K = o3dheat.heat_kernel(icosphere(2), k=20)
+    from o3dheat.spectral.signatures import wks_energies
+
+    assert np.allclose(wks["t"], wks_energies(K, 3)[0])  # the reference's log-energies, in the t column

@@ -117,7 +117,7 @@ def test_every_recipe_shows_every_panels_surface_readably(tmp_path, monkeypatch,
     rows = [dict(descriptor="hks_density", error="", kind=k, kernel=kern, scale=s, rel_l2=0.01 * s + e)
             for k in ("decimate", "jitter") for kern, e in (("weighted", 0.0), ("linear", 0.02)) for s in range(1, 11)]
     figures.study_figures(pd.DataFrame(rows), tmp_path)
-    assert len(made) == 11
+    assert len(made) == 12  # ten figures, the study's chart and its ranking
     panels = 0
     for name, fig in made:
         assert not_blank(tmp_path / ("paper" if name.startswith("fig") else "") / name), name
