@@ -369,3 +369,52 @@ def test_flags_that_are_not_bools_are_refused(scans, tmp_path):
         with pytest.raises(o3dheat.MeshError, match=f"{next(iter(kw))} must be True or False"):
             run(STEPS, scans / "*.ply", out, scheduler="sequential", **kw)
     assert not out.exists()
+
+
+DESCRIPTOR_FLAGS = ["-f", "hks:k=20,scales=4", "-f", "wks:k=20,energies=6", "-f", "si_hks:k=20,frequencies=5"]
+
+
+def test_descriptors_over_a_dataset_one_spectrum_per_mesh_npz_resumed_after_kill(scans, tmp_path, monkeypatch):
+    """Issue 31: HKS, WKS and SI-HKS of every mesh of a folder, one .npz each (arrays named by
+    descriptor), one eigensolve per mesh for all three; a batch killed with SIGKILL and run again
+    gives the same files as one uninterrupted run."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    import o3dheat.spectral.spectrum as spectrum
+
+    solves = []
+    real = spectrum.solve_eigenproblem
+    monkeypatch.setattr(spectrum, "solve_eigenproblem", lambda *a, **k: (solves.append(1), real(*a, **k))[1])
+    steps = [("hks", {"k": 20, "scales": 4}), ("wks", {"k": 20, "energies": 6}), ("si_hks", {"k": 20, "frequencies": 5})]
+    whole = tmp_path / "whole"
+    t = run(Chain(steps), str(scans / "*.ply"), whole, scheduler="sequential", suffix=".npz", progress=False)
+    assert t["status"].tolist() == ["done"] * 3 and len(solves) == 3  # one spectrum per mesh
+    with np.load(whole / "m1.npz") as z:
+        assert {"vertex_hks", "vertex_wks", "vertex_si_hks"} <= set(z.files)
+        assert z["vertex_wks"].shape[1] == 6 and z["vertex_si_hks"].shape[1] == 5
+        K = o3dheat.HeatKernel(o3dheat.eigensolve(read_mesh(scans / "m1.ply"), k=20))
+        np.testing.assert_allclose(z["vertex_wks"], K.wks(6), rtol=1e-10, atol=0)
+    for i in range(3, 8):  # more files: the kill lands in the middle
+        write_mesh(scans / f"m{i}.ply", _mesh(i % 3))
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "o3dheat.cli", "batch", str(scans / "*.ply"), "--out", str(out), "--format", "npz",
+           "--scheduler", "sequential", *DESCRIPTOR_FLAGS]
+    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list(out.glob("*.npz"))) < 2:
+        time.sleep(0.05)
+    os.killpg(p.pid, signal.SIGKILL)
+    p.wait()
+    done_before = len(list(out.glob("*.npz")))
+    assert 2 <= done_before < 8 and not list(out.glob("*.tmp"))  # atomic writes: no half file
+    assert subprocess.run(cmd, capture_output=True).returncode == 0
+    full = tmp_path / "full"
+    assert subprocess.run(cmd[:6] + [str(full)] + cmd[7:], capture_output=True).returncode == 0
+    names = sorted(p.name for p in full.glob("*.npz"))
+    assert len(names) == 8 and names == sorted(p.name for p in out.glob("*.npz"))
+    for name in names:
+        with np.load(out / name) as a, np.load(full / name) as b:
+            assert a.files == b.files and all(np.array_equal(a[k], b[k]) for k in a.files), name
