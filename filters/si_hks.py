@@ -24,7 +24,7 @@ class SiHks:
     alpha : float
         Base of the times (> 1).
     tau_from, tau_to, tau_step : float
-        The grid of ``tau`` (default 1e-9 .. 4096 in ``t``, steps of a quarter octave): it must
+        The grid of ``tau`` (default 1e-12 .. 1e12 in ``t``, steps of a quarter octave): it must
         contain the shape's scale space, or the filter says which grid to use.
     variant : str
         The kernel, a key of :data:`o3dheat.spectral.variants.VARIANTS`.

@@ -27,8 +27,9 @@ by ``a`` multiplies its eigenvalues by ``a⁻²`` and its densities by ``a⁻²`
 constant (removed by the derivative) and is shifted in ``τ`` by ``2 log_α a`` (removed by the
 magnitude of the Fourier transform, as long as the derivative vanishes at both ends of the grid:
 it does, since the truncated HKS is flat below ``1/λ_k`` and above a few ``1/λ_2``). The default grid
-``τ ∈ [−30, 12]`` (``t`` from 1e-9 to 4096) covers surfaces of size 1e-3 to 1e3 with 100 eigenpairs;
-:func:`si_hks` refuses (naming the grid to use) when the derivative does not vanish at the ends.
+``τ ∈ [−40, 40]`` (``t`` from 1e-12 to 1e12, 321 times) covers surfaces of size 1e-4 to 1e4 with
+100 eigenpairs, and the dimensionless "linear" kernel; :func:`si_hks` refuses (naming the grid to
+use) when the derivative does not vanish at the ends.
 The paper's normalisation (``normalize="lambda2"``: rates ``λ / λ_2``) gives the same invariance
 exactly, without the loss of the time information the Fourier magnitude discards.
 """
@@ -52,7 +53,7 @@ __all__ = ["wks", "si_hks", "wks_energies", "WKS_VARIANCE", "SI_HKS_GRID"]
 #: Aubry's default width of the WKS filters, in units of the spacing of the energies
 WKS_VARIANCE = 6.0
 #: SI-HKS default grid: (alpha, tau from, tau to, tau step)
-SI_HKS_GRID = (2.0, -30.0, 12.0, 0.25)
+SI_HKS_GRID = (2.0, -40.0, 40.0, 0.25)
 
 
 def _nonzero(kernel):
@@ -180,7 +181,7 @@ def si_hks(kernel: HeatKernel, frequencies: int = 8, grid: tuple[float, float, f
         How many of the lowest frequencies of the Fourier magnitude are kept (from the constant one).
     grid : (alpha, tau_from, tau_to, tau_step)
         ``t = alpha ** tau`` for ``tau`` from ``tau_from`` to ``tau_to`` by ``tau_step`` (default
-        :data:`SI_HKS_GRID`: 1e-9 .. 4096, 169 times). Fixed, not taken from the spectrum: the
+        :data:`SI_HKS_GRID`: 1e-12 .. 1e12, 321 times). Fixed, not taken from the spectrum: the
         invariance comes from the Fourier magnitude, not from a normalisation.
 
     Returns
@@ -214,17 +215,23 @@ def si_hks(kernel: HeatKernel, frequencies: int = 8, grid: tuple[float, float, f
     F = checks.count(frequencies, "frequencies", maximum=len(taus) - 1)
     t = alpha**taus
     X = kernel.spectrum.eigenvectors
-    with np.errstate(under="ignore"):
-        h = (X * X) @ np.exp(-0.5 * np.multiply.outer(kernel.rates, t))  # (n, T), > 0
-    if not np.all(h > 0):
-        raise MeshError("the HKS vanishes at some vertex and time of the grid (a vertex outside every "
-                        "eigenvector's support?): its logarithm is undefined")
-    d = np.diff(np.log(h), axis=1)
+    r = np.asarray(kernel.rates, dtype=np.float64)
+    r = np.where(r > 1e-9 * max(float(r.max()), 1e-300), r, 0.0)  # the constants' rates: 0, not their rounding
+    # log h = log Σ_i x_i² e^{−r_i t/2}, as a log-sum-exp: no underflow at the large times of the grid
+    with np.errstate(divide="ignore"):
+        logx2 = np.log(X * X)  # (n, k); −inf where an eigenvector vanishes
+    logh = np.empty((len(X), len(t)))
+    for j, tj in enumerate(t):
+        a = logx2 - 0.5 * r * tj
+        top = a.max(axis=1)
+        if not np.all(np.isfinite(top)):
+            raise MeshError("the HKS vanishes at some vertex (in no eigenvector's support): its logarithm is undefined")
+        logh[:, j] = top + np.log(np.exp(a - top[:, None]).sum(axis=1))
+    d = np.diff(logh, axis=1)
     scale = float(np.abs(d).max()) or 1.0
     ends = max(float(np.abs(d[:, :2]).max()), float(np.abs(d[:, -2:]).max())) / scale
     if ends > 1e-3:
-        r = np.asarray(kernel.rates)
-        r = r[r > 1e-9 * r.max()]
+        r = r[r > 0]
         need = (np.floor(np.log(0.01 / r.max()) / np.log(alpha)), np.ceil(np.log(50.0 / r.min()) / np.log(alpha)))
         raise MeshError(f"the SI-HKS grid t = {alpha:g}^tau, tau in [{lo:g}, {hi:g}] does not contain this surface's "
                         f"scale space (the HKS still changes at its ends: {ends:.1e} of its largest change); use "
