@@ -68,9 +68,16 @@ status 2): a pattern matching nothing, two inputs with the same output name, an 
 replace an input. Default scheduler: a local Dask cluster, one worker per core.""",
     "spectrum": """examples:
   o3dheat spectrum mesh.ply -k 200 -o spectrum.npz
+  o3dheat spectrum mesh.ply -k 200 --mass voronoi -o voronoi.npz
 
 read it back in Python: o3dheat.Spectrum.load("spectrum.npz") (checked: eigenpairs of the stored
-operators, B-orthonormal, ascending).""",
+operators, B-orthonormal, ascending), and smooth with the kernel of the same variant:
+o3dheat.HeatKernel(o3dheat.Spectrum.load("voronoi.npz"), variant="voronoi").
+
+--mass names a kernel variant, as the filters' variant= and the study's kernels do, one of
+  <VARIANTS>
+The mass kinds of o3dheat.eigensolve(mass=...) are still read where they differ from these
+(<OLD_MASSES>), with a note: they are deprecated spellings.""",
     "study": """examples:
   o3dheat study study.toml --out results/                      # a local Dask cluster
   o3dheat study study.toml --out results/ --scheduler sequential
@@ -114,6 +121,7 @@ def _epilog(name):
     import json
 
     return (EXAMPLES[name].replace("<VARIANTS>", json.dumps(list(variants.VARIANTS), ensure_ascii=False))
+            .replace("<OLD_MASSES>", ", ".join(f"{kind} = {variant}" for kind, variant in _former_masses().items()))
             .replace("<GRIDS>", "one of " + ", ".join(map(json.dumps, variants.GRIDS)))
             .replace("<METHODS>", "one of " + ", ".join(map(json.dumps, heatflow.METHODS))))
 
@@ -191,9 +199,10 @@ def _spectrum_arguments(p):
     """The arguments of ``o3dheat spectrum``."""
     p.add_argument("input", help="mesh file")
     p.add_argument("-k", type=int, default=100, help="eigenpairs (default: %(default)s)")
-    p.add_argument("--mass", default="consistent", choices=list(fem.MASS_KINDS),
-                   help="the mass B of L x = λ B x (o3dheat.spectral.fem.MASS_KINDS; default: %(default)s): "
-                        + "; ".join(f"{name}: {text}" for name, text in fem.MASS_KINDS.items()))
+    p.add_argument("--mass", default="weighted", metavar="{" + ",".join(variants.VARIANTS) + "}",
+                   help="the kernel variant whose eigenproblem L x = λ B x is solved, B its mass "
+                        "(o3dheat.spectral.variants.VARIANTS; default: %(default)s): "
+                        + "; ".join(f"{name} (B: {mass}): {text}" for name, (mass, text) in variants.VARIANTS.items()))
     p.add_argument("-o", "--out", required=True,
                    help="output .npz, in a folder that exists: the whole spectrum (eigenpairs, operators, areas, "
                         "faces, residuals), read back by o3dheat.Spectrum.load")
@@ -365,14 +374,34 @@ def _filters(args):
         print(f"  {p.name} ({p.type}, default {p.default!r})\n      {p.help}")
 
 
+def _former_masses():
+    """{mass kind: its kernel variant} for the mass kinds (fem.MASS_KINDS) that are not a variant's
+    name: the former spellings of ``spectrum --mass``, still read (deprecated)."""
+    return {kind: variants.variant_of_mass(kind) for kind in fem.MASS_KINDS if kind not in variants.VARIANTS}
+
+
+def _mass_of_argument(name):
+    """The mass kind of ``spectrum --mass NAME``: a kernel variant's, or a former spelling (a mass kind,
+    said on stderr to be deprecated); anything else is a MeshError naming the variants."""
+    former = _former_masses()
+    if name in former:
+        print(f"o3dheat: note: --mass {name} is deprecated: write --mass {former[name]} (the same mass)",
+              file=sys.stderr)
+        return name
+    if name not in variants.VARIANTS:
+        raise MeshError(f"unknown --mass {name!r}: use a kernel variant, one of {', '.join(variants.VARIANTS)}")
+    return variants.mass_of(name)
+
+
 def _spectrum(args):
+    mass = _mass_of_argument(args.mass)
     out = Path(args.out)
     if out.suffix.lower() != ".npz":
         raise MeshError(f"the spectrum is written as .npz: {out}")
     check_output(out, args.overwrite)
     if args.k < 1:
         raise MeshError(f"-k must be at least 1, got {args.k}")
-    s = spectrum.eigensolve(io.read_mesh(args.input), k=args.k, mass=args.mass)
+    s = spectrum.eigensolve(io.read_mesh(args.input), k=args.k, mass=mass)
     s.save(out, overwrite=True)  # check_output refused an existing file without --overwrite
     print(f"wrote {out}: {s.k} eigenpairs of {s.n} vertices, λ in [{s.eigenvalues[0]:.4g}, "
           f"{s.eigenvalues[-1]:.4g}], max residual {s.residuals.max():.1e} ({s.backend})")
@@ -390,6 +419,10 @@ def _study(args):
         summary = ok.groupby(["descriptor", "kernel"])["rel_l2"].median().unstack("kernel")
         print(f"median relative L2 discrepancy to the reference sampling ({len(ok)} rows):")
         print(summary.to_string(float_format=lambda x: f"{x:.3g}"))
+        ranked = study.ranking(ok)
+        print("most stable per resampling kind (median rel_l2; study.ranking):")
+        for kind, g in ranked.groupby("kind", sort=False):
+            print(f"  {kind}: " + ", ".join(f"{r.descriptor}/{r.kernel} {r.median:.3g}" for r in g.head(5).itertuples()))
     print(f"wrote {out / 'study.csv'}" + (f" and {len(written)} plots ({out}/study_*.png)" if written else
                                           " (no plot: no task succeeded)"))
     if len(failed):

@@ -125,7 +125,7 @@ def accuracy(K, V, F, f, paper, log):
     import o3dheat
     from o3dheat.errors import ConvergenceError
 
-    B = o3dheat.mass_matrix(V, F)
+    B = o3dheat.mass_matrix((V, F))
     one = np.ones(len(f))
     g = f - (one @ (B @ f)) / (one @ (B @ one))
     nf = np.sqrt(g @ (B @ g))

@@ -107,8 +107,8 @@ def child(method, path, k, out):
         lam, extra = s.eigenvalues, (f"{s.backend}; assemble {tm['assemble']:.1f} + factorize "
                                      f"{tm['factorize']:.1f} + solve {tm['solve']:.1f} s")
     elif method == "eigsh":
-        L = o3dheat.stiffness_matrix(V, F)
-        B = o3dheat.mass_matrix(V, F)
+        L = o3dheat.stiffness_matrix((V, F))
+        B = o3dheat.mass_matrix((V, F))
         sigma = -0.01 * 4 * np.pi / B.sum()
         lam, _ = spla.eigsh(L, k=k, M=B, sigma=sigma)
         extra = "SuperLU"

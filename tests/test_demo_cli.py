@@ -83,7 +83,7 @@ def test_cli_filters(capsys):
     out = capsys.readouterr().out
     assert "heat_smooth" in out and "colorize" in out
     lines = out.strip().splitlines()
-    assert len(lines) == 7  # one line per built-in filter
+    assert len(lines) == 9  # one line per built-in filter
     for line in lines:  # plain text, whole sentences
         assert "``" not in line and "`" not in line and ":func:" not in line and line.endswith("."), line
     assert main(["filters", "hks"]) == 0
@@ -315,3 +315,39 @@ def test_a_bad_filter_value_names_its_parameter_and_a_nan_attribute_its_vertex(t
     assert main(["apply", str(tmp_path / "nan.ply"), str(tmp_path / "o.ply"), "-f", "heat_smooth:attribute=g,k=10"]) == 2
     assert "attribute 'g' has 1 NaN or infinite values (first at vertex 5)" in capsys.readouterr().err
     assert not (tmp_path / "o.ply").exists()
+
+
+def test_spectrum_mass_takes_the_kernel_variants(tmp_path, sphere_ply, capsys):
+    """Issue 30: `spectrum --mass` named masses (consistent, identity, ...) where the filters, the study
+    and HeatKernel name kernel variants; it takes the variants' names, and the former spellings with a
+    one-line note on stderr."""
+    from o3dheat.spectral import fem, variants
+
+    with pytest.raises(SystemExit):
+        main(["spectrum", "--help"])
+    assert "--mass {" + ",".join(variants.VARIANTS) + "}" in capsys.readouterr().out
+    for variant in variants.VARIANTS:
+        out = tmp_path / f"{variant}.npz"
+        assert main(["spectrum", str(sphere_ply), "-k", "5", "--mass", variant, "-o", str(out)]) == 0
+        assert capsys.readouterr().err == ""
+        s = o3dheat.Spectrum.load(out)
+        assert s.mass_kind == variants.mass_of(variant)
+        o3dheat.HeatKernel(s, variant=variant)  # the kernel of the same name pairs with it
+    assert main(["spectrum", str(sphere_ply), "-k", "5", "-o", str(tmp_path / "default.npz")]) == 0
+    assert o3dheat.Spectrum.load(tmp_path / "default.npz").mass_kind == variants.mass_of("weighted")
+    # the former spellings (mass kinds that are not a variant's name) still work, with a note
+    former = [kind for kind in fem.MASS_KINDS if kind not in variants.VARIANTS]
+    assert former  # consistent, identity
+    for kind in former:
+        out = tmp_path / f"former-{kind}.npz"
+        assert main(["spectrum", str(sphere_ply), "-k", "5", "--mass", kind, "-o", str(out)]) == 0
+        err = capsys.readouterr().err
+        assert err == (f"o3dheat: note: --mass {kind} is deprecated: write --mass {variants.variant_of_mass(kind)} "
+                       "(the same mass)\n")
+        same = o3dheat.Spectrum.load(tmp_path / f"{variants.variant_of_mass(kind)}.npz")
+        np.testing.assert_array_equal(o3dheat.Spectrum.load(out).eigenvalues, same.eigenvalues)
+    # anything else: one line naming the variants, before any work
+    assert main(["spectrum", str(sphere_ply), "--mass", "area", "-o", str(tmp_path / "x.npz")]) == 2
+    assert capsys.readouterr().err == ("o3dheat: error: unknown --mass 'area': use a kernel variant, one of "
+                                       + ", ".join(variants.VARIANTS) + "\n")
+    assert not (tmp_path / "x.npz").exists()

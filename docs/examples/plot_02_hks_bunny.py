@@ -58,5 +58,5 @@ _ = ax.legend()  # assigned: the last expression of a cell would print its repr
 # lumped mass:
 Hp = K.hks(t[1], form="paper")
 Hd = K.hks(t[1])
-lumped = np.asarray(o3dheat.mass_matrix(*o3dheat.as_arrays(mesh)).sum(axis=1)).ravel()
+lumped = np.asarray(o3dheat.mass_matrix(mesh).sum(axis=1)).ravel()
 print("median of (paper / density) / lumped mass:", np.median(Hp / Hd / lumped).round(3))

@@ -155,7 +155,7 @@ def reference(V, F, cfg):
             axis = int(np.argmax(np.ptp(V, axis=0)))
             desc, times = compute(V, F, cfg["kernels"], cfg["descriptors"], cfg["k"], None, axis,
                                        cfg["grid"], cfg["scales"], cfg.get("method", "spectral"))
-            areas = np.asarray(mass_matrix(V, F, "lumped").diagonal())
+            areas = np.asarray(mass_matrix((V, F), "lumped").diagonal())
     except Exception as e:
         log.debug("the reference failed: %s", traceback.format_exc())
         return {"error": f"the reference sampling failed: {one_line(e)}"}

@@ -18,11 +18,22 @@ Conventions (the paper's eq. (3), sign flipped so that L is positive semi-defini
 * lumped mass: ``diag(B 1)`` (a third of the area of the triangles at a vertex);
   Voronoi mass: ``diag(a)`` with the mixed Voronoi areas ``a`` of Meyer et al. (2003).
 
-All functions take ``V (n, 3) float64`` and ``F (m, 3) int`` arrays (see :func:`o3dheat.as_arrays <o3dheat.geometry.mesh.as_arrays>`)
-and return ``scipy.sparse.csc_matrix`` of shape ``(n, n)``, float64.
+The public operators :func:`stiffness_matrix` and :func:`mass_matrix` (``o3dheat.stiffness_matrix``,
+``o3dheat.mass_matrix``) take a mesh, like every o3dheat function: an Open3D mesh (tensor or legacy),
+a ``(V, F)`` pair or a mesh-like (checked by :func:`o3dheat.as_arrays <o3dheat.geometry.mesh.as_arrays>`);
+their former call with two arrays, ``mass_matrix(V, F)``, still works and warns (DeprecationWarning).
+The module's other functions take ``V (n, 3) float64`` and ``F (m, 3) int`` arrays. The operators
+are ``scipy.sparse.csc_matrix`` of shape ``(n, n)``, float64; the areas and curvatures ``(n,)`` float64.
+
+The mass kinds (:data:`MASS_KINDS`) name matrices. A user names an eigenproblem by its kernel
+variant (:data:`o3dheat.spectral.variants.VARIANTS`: "weighted" is the consistent mass, "linear"
+the identity, "voronoi" and "lumped" their own): ``o3dheat spectrum --mass`` takes the variant names.
 """
 
 from __future__ import annotations
+
+import functools
+import warnings
 
 import numpy as np
 import scipy.sparse as sp
@@ -31,13 +42,16 @@ from numpy.typing import ArrayLike
 from o3dheat.errors import MeshError, OutOfMemory
 from o3dheat.geometry import _loops as loops
 from o3dheat.geometry._tables import edges, unit_scale, vertex_normals
+from o3dheat.geometry.mesh import as_arrays
+from o3dheat.typing import MeshLike
 
 __all__ = ["stiffness_matrix", "mass_matrix", "voronoi_areas", "operators", "adjacency_pattern", "mean_curvature",
            "gaussian_curvature", "MASS_KINDS", "check_mass_kind"]
 
 #: mass kind -> what the matrix is: the one definition of the masses of ``L x = λ B x``, used by
-#: :func:`o3dheat.eigensolve <o3dheat.spectral.spectrum.eigensolve>`, :func:`o3dheat.diffuse <o3dheat.spectral.diffusion.diffuse>`, the kernel variants
-#: (:data:`o3dheat.spectral.variants.VARIANTS` names a mass of this table) and the command (``--mass``)
+#: :func:`o3dheat.eigensolve <o3dheat.spectral.spectrum.eigensolve>`, :func:`o3dheat.diffuse <o3dheat.spectral.diffusion.diffuse>` and the kernel variants
+#: (:data:`o3dheat.spectral.variants.VARIANTS` names a mass of this table; ``o3dheat spectrum --mass``
+#: takes the variant names, and the keys here that differ from them as deprecated spellings)
 MASS_KINDS = {
     "consistent": "the paper's consistent FEM mass B, B_rs = (|t_r| + |t_s|)/12, B_ii = Σ|t|/6",
     "lumped": "diag(B 1), the row sums of B: a third of the area of the triangles at each vertex",
@@ -124,15 +138,49 @@ def _assembled(V, F, consistent, pattern=None):
     return L, B, vor, lumped
 
 
-def stiffness_matrix(V: ArrayLike, F: ArrayLike) -> sp.csc_matrix:
+def _mesh_first(operator):
+    """``operator(mesh, ...)``, also called the former way, ``operator(V, F, ...)`` (two arrays), with a
+    DeprecationWarning. The arrays of the former call are used as they are (its checks and messages
+    unchanged); a mesh is checked by :func:`~o3dheat.geometry.mesh.as_arrays`."""
+
+    @functools.wraps(operator)
+    def call(mesh, *args, **kwargs):
+        if args and not isinstance(args[0], str) and hasattr(args[0], "__len__"):  # (V, F, ...): the former call
+            name = operator.__name__
+            warnings.warn(f"o3dheat.{name}(V, F, ...) is deprecated: pass one mesh, like every o3dheat function: "
+                          f"o3dheat.{name}((V, F), ...) or an Open3D mesh", DeprecationWarning, stacklevel=2)
+            return operator(_Arrays(mesh, args[0]), *args[1:], **kwargs)
+        return operator(mesh, *args, **kwargs)
+
+    return call
+
+
+class _Arrays(tuple):
+    """The ``(V, F)`` of the former two-array call, taken as they are (not through ``as_arrays``)."""
+
+    __slots__ = ()
+
+    def __new__(cls, V, F):
+        return super().__new__(cls, (V, F))
+
+
+def _vertices_and_faces(mesh):
+    if isinstance(mesh, _Arrays):
+        return np.asarray(mesh[0], dtype=np.float64), mesh[1]
+    return as_arrays(mesh)
+
+
+@_mesh_first
+def stiffness_matrix(mesh: MeshLike) -> sp.csc_matrix:
     """Cotangent stiffness matrix ``L`` (positive semi-definite, rows sum to 0).
 
     Parameters
     ----------
-    V : (n, 3) float64 ndarray
-        Vertex positions.
-    F : (m, 3) int ndarray
-        Triangles (0-based indices into ``V``); every face must have a positive area.
+    mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh, (V, F) tuple or mesh-like
+        The surface (:func:`o3dheat.as_arrays <o3dheat.geometry.mesh.as_arrays>`): ``V`` ``(n, 3)``
+        vertex positions, ``F`` ``(m, 3)`` 0-based triangles, every face with a positive area.
+        ``stiffness_matrix(V, F)`` (two arrays, the former call) still works and warns
+        (DeprecationWarning).
 
     Returns
     -------
@@ -143,11 +191,15 @@ def stiffness_matrix(V: ArrayLike, F: ArrayLike) -> sp.csc_matrix:
     Examples
     --------
     >>> import numpy as np, open3d as o3d, o3dheat
-    >>> V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10))
-    >>> L = o3dheat.stiffness_matrix(V, F)
-    >>> bool(abs(L @ np.ones(len(V))).max() < 1e-12)
+    >>> mesh = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10)
+    >>> L = o3dheat.stiffness_matrix(mesh)
+    >>> bool(abs(L @ np.ones(L.shape[0])).max() < 1e-12)
     True
+    >>> V, F = o3dheat.as_arrays(mesh)
+    >>> (o3dheat.stiffness_matrix((V, F)) != L).nnz       # arrays: one (V, F) pair
+    0
     """
+    V, F = _vertices_and_faces(mesh)
     return _assembled(V, F, consistent=False)[0]
 
 
@@ -226,19 +278,23 @@ def _mass(kind, B, areas, lumped):
     return sp.diags(areas if kind == "voronoi" else lumped).tocsc()
 
 
-def mass_matrix(V: ArrayLike, F: ArrayLike, kind: str = "consistent") -> sp.csc_matrix:
+@_mesh_first
+def mass_matrix(mesh: MeshLike, kind: str = "consistent") -> sp.csc_matrix:
     """Mass matrix ``B`` of the linear FEM.
 
     Parameters
     ----------
-    V : (n, 3) float64 ndarray
-        Vertex positions.
-    F : (m, 3) int ndarray
-        The triangles, as indices of their vertices.
+    mesh : o3d.t.geometry.TriangleMesh, o3d.geometry.TriangleMesh, (V, F) tuple or mesh-like
+        The surface (:func:`o3dheat.as_arrays <o3dheat.geometry.mesh.as_arrays>`): ``V`` ``(n, 3)``
+        vertex positions, ``F`` ``(m, 3)`` 0-based triangles. ``mass_matrix(V, F)`` and
+        ``mass_matrix(V, F, kind)`` (two arrays, the former call) still work and warn
+        (DeprecationWarning).
     kind : str
         A key of :data:`MASS_KINDS`: "consistent", ``B[i, j] = (|t_r| + |t_s|)/12``,
         ``B[i, i] = sum |t|/6`` (the paper's B); "lumped", its row sums on the diagonal;
-        "voronoi", the mixed Voronoi areas on the diagonal; "identity", ``I``.
+        "voronoi", the mixed Voronoi areas on the diagonal; "identity", ``I``. These name the
+        matrix; the kernel variant of each (:data:`o3dheat.spectral.variants.VARIANTS`, the names of
+        ``o3dheat spectrum --mass``) is :func:`o3dheat.spectral.variants.variant_of_mass`.
 
     Returns
     -------
@@ -249,14 +305,19 @@ def mass_matrix(V: ArrayLike, F: ArrayLike, kind: str = "consistent") -> sp.csc_
     Examples
     --------
     >>> import numpy as np, open3d as o3d, o3dheat
-    >>> V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_box())
-    >>> float(np.ones(len(V)) @ o3dheat.mass_matrix(V, F) @ np.ones(len(V)))
+    >>> box = o3d.t.geometry.TriangleMesh.create_box()
+    >>> B = o3dheat.mass_matrix(box)
+    >>> float(np.ones(B.shape[0]) @ B @ np.ones(B.shape[0]))      # the area
+    6.0
+    >>> V, F = o3dheat.as_arrays(box)
+    >>> float(o3dheat.mass_matrix((V, F), "lumped").diagonal().sum())   # arrays: one (V, F) pair
     6.0
     """
     check_mass_kind(kind)
+    V, F = _vertices_and_faces(mesh)
     if kind == "identity":
         return sp.identity(len(V), format="csc")
-    _, B, areas, lumped = _assembled(np.asarray(V, dtype=np.float64), F, consistent=kind == "consistent")
+    _, B, areas, lumped = _assembled(V, F, consistent=kind == "consistent")
     return _mass(kind, B, areas, lumped)
 
 

@@ -404,7 +404,7 @@ def inverse_mass_bound(B: sp.spmatrix, mass: str) -> np.ndarray | None:
     >>> import numpy as np, open3d as o3d, o3dheat
     >>> from o3dheat.spectral.spectrum import inverse_mass_bound
     >>> V, F = o3dheat.as_arrays(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 8))
-    >>> B = o3dheat.mass_matrix(V, F)
+    >>> B = o3dheat.mass_matrix((V, F))
     >>> bool(np.all(np.linalg.inv(B.toarray()).diagonal() <= inverse_mass_bound(B, "consistent")))
     True
     """

@@ -22,6 +22,7 @@ not, the limits and the cost: ``docs/details/topology.md`` (Tracking).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -45,6 +46,11 @@ KINDS = ("minimum", "saddle", "maximum")
 @dataclass
 class Tracks:
     """Critical points followed across scales (see the module docstring for the rule).
+
+    Computed from the attributes below, as attributes too (properties): :attr:`first`, :attr:`last`,
+    :attr:`lifetime`, :attr:`positions` and :attr:`euler_characteristic`, a ``(T,)`` array of
+    ``M − s + m`` per scale (it was a method: ``tr.euler_characteristic(scale)`` still works, with a
+    DeprecationWarning; write ``tr.euler_characteristic[scale]``).
 
     Attributes
     ----------
@@ -74,6 +80,8 @@ class Tracks:
     >>> tr = o3dheat.track_critical_points(m, np.c_[x, 2 * x, 3 * x], [0.0, 0.1, 0.2])
     >>> len(tr), tr.kind.tolist(), tr.last.tolist()
     (4, ['minimum', 'maximum', 'saddle', 'saddle'], [2, 2, 2, 2])
+    >>> tr.euler_characteristic          # χ of the torus at every scale
+    array([0, 0, 0])
     """
 
     kind: np.ndarray
@@ -205,21 +213,46 @@ class Tracks:
         return replace(self, kind=self.kind[keep], vertex=self.vertex[keep],
                        multiplicity=self.multiplicity[keep], events=events, _persistence=pers)
 
-    def euler_characteristic(self, scale: int) -> int:
-        """``M − s + m`` of the living tracks at ``scale`` (saddles with their multiplicity).
+    @property
+    def euler_characteristic(self) -> np.ndarray:
+        """(T,) int64: ``M − s + m`` of the living tracks at each scale (saddles with their
+        multiplicity), χ of the surface at every scale (see the module docstring).
+
+        It was a method: ``tr.euler_characteristic(scale)`` still returns the int at ``scale``, with a
+        DeprecationWarning (the array is callable for that); write ``tr.euler_characteristic[scale]``.
 
         Examples
         --------
         See :class:`Tracks`.
         """
-        alive = self.vertex[:, scale] >= 0
-        sign = np.where(self.kind == "saddle", -1, 1)
-        return int(np.sum((sign * self.multiplicity[:, scale])[alive]))
+        sign = np.where(self.kind == "saddle", -1, 1).astype(np.int64)
+        alive = self.vertex >= 0
+        chi = np.sum(np.where(alive, sign[:, None] * self.multiplicity, 0), axis=0, dtype=np.int64)
+        return chi.view(_PerScale)
 
     def __repr__(self):
         counts = {k: int(np.sum(self.kind == k)) for k in KINDS}
         return (f"Tracks({len(self)} tracks: {counts['minimum']} minima, {counts['saddle']} saddles, "
                 f"{counts['maximum']} maxima; {len(self.times)} scales; {len(self.events)} events)")
+
+
+class _PerScale(np.ndarray):
+    """:attr:`Tracks.euler_characteristic`: a plain ``(T,)`` array that can also be called the way of
+    the former method, ``tr.euler_characteristic(scale)`` (a DeprecationWarning; the int at ``scale``).
+    What is computed from it (``chi == 0``, ``chi + 1``) is a plain ndarray."""
+
+    def __call__(self, scale: int) -> int:
+        warnings.warn("Tracks.euler_characteristic is an attribute now, a (T,) array of M - s + m per scale "
+                      "(like first, last and lifetime): write tr.euler_characteristic[scale] instead of "
+                      "tr.euler_characteristic(scale)", DeprecationWarning, stacklevel=2)
+        return int(np.asarray(self)[scale])
+
+    def __array_wrap__(self, array, context=None, return_scalar=False):
+        array = np.asarray(array)
+        return array[()] if return_scalar else array
+
+    def __repr__(self) -> str:
+        return repr(np.asarray(self))
 
 
 def track_critical_points(mesh: MeshLike | Surface, F: FieldLike, t: TimesLike,

@@ -362,7 +362,8 @@ def test_diagram_descriptor_is_gudhis_distance_on_the_lower_star_diagrams():
     """Issue 31: the "diagram" descriptor compares persistence diagrams, no transfer: its pairs are
     gudhi's own lower-star persistence of the field (an independent computation), and its distances
     gudhi's bottleneck and Hera Wasserstein on them, over the reference field's range."""
-    gudhi = pytest.importorskip("gudhi")
+    pytest.importorskip("gudhi")
+    import gudhi
     import gudhi.hera
 
     from o3dheat.geometry import resample

@@ -13,5 +13,5 @@ needs_cholmod = pytest.mark.skipif("cholmod" not in la.available_backends(), rea
 def spd_matrix():
     """L + 0.1 B of an irregular mesh: sparse, symmetric positive definite."""
     V, F = irregular()
-    L, B = fem.stiffness_matrix(V, F), fem.mass_matrix(V, F)
+    L, B = fem.stiffness_matrix((V, F)), fem.mass_matrix((V, F))
     return sp.csc_matrix(L + 0.1 * B)

@@ -46,7 +46,7 @@ def test_history_and_single_field(small):
 
 def test_mass_is_conserved(small):
     V, F = small
-    B = o3dheat.mass_matrix(V, F)
+    B = o3dheat.mass_matrix((V, F))
     f = np.random.default_rng(3).random(len(V))
     for scheme in ("explicit", "implicit"):
         g = o3dheat.diffuse((V, F), f, dt=1e-4, steps=20, scheme=scheme)

@@ -106,7 +106,7 @@ def test_means_per_part_and_exact_constants():
     assert np.array_equal(U, np.repeat(f[:, None], 2, axis=1)) or np.allclose(U, f[:, None], rtol=0, atol=1e-14)
     assert rep.solves == 0
     g = np.random.default_rng(0).standard_normal(len(V))
-    W = fem.mass_matrix(V, F)
+    W = fem.mass_matrix((V, F))
     late = heat_flow((V, F), g, 1e5)
     for p in (0, 1):
         on = parts == p
@@ -413,7 +413,7 @@ def test_a_fan_of_many_faces_assembles_like_libigl():
     ang = np.linspace(0, 2 * np.pi, N, endpoint=False)
     V = np.vstack([[0.0, 0.0, 0.0], np.c_[np.cos(ang), np.sin(ang), 0.1 * np.sin(3 * ang)]])
     F = np.c_[np.zeros(N, int), 1 + np.arange(N), 1 + (np.arange(N) + 1) % N]
-    L = fem.stiffness_matrix(V, F)
+    L = fem.stiffness_matrix((V, F))
     assert abs(L + igl.cotmatrix(V, F)).max() < 1e-9 * abs(L).max()
     with pytest.raises(MeshError, match="face indices must lie in"):
         fem.stiffness_matrix(V[:4], np.array([[0, 1, 2], [1, 3, 4]]))

@@ -206,10 +206,10 @@ def test_variants_match_dense_formulas():
 
     V, F = icosphere(1)
     V = V * [1.2, 1, 0.7] + 0.05 * np.random.default_rng(1).standard_normal(V.shape)
-    L = o3dheat.stiffness_matrix(V, F).toarray()
-    weights = {"weighted": o3dheat.mass_matrix(V, F).toarray(), "linear": np.eye(len(V)),
-               "voronoi": o3dheat.mass_matrix(V, F, "voronoi").toarray(),
-               "lumped": o3dheat.mass_matrix(V, F, "lumped").toarray()}
+    L = o3dheat.stiffness_matrix((V, F)).toarray()
+    weights = {"weighted": o3dheat.mass_matrix((V, F)).toarray(), "linear": np.eye(len(V)),
+               "voronoi": o3dheat.mass_matrix((V, F), "voronoi").toarray(),
+               "lumped": o3dheat.mass_matrix((V, F), "lumped").toarray()}
     t = 0.3
     f = rng_field(len(V), 1)
     for variant, W in weights.items():

@@ -12,7 +12,7 @@ from o3dheat.spectral.linalg import factorize
 
 def operators(mesh):
     V, F = mesh
-    L, B = fem.stiffness_matrix(V, F).tocsr(), fem.mass_matrix(V, F).tocsr()
+    L, B = fem.stiffness_matrix((V, F)).tocsr(), fem.mass_matrix((V, F)).tocsr()
     sigma = -0.01 * 4 * np.pi / B.sum()
     return L, B, sigma, factorize(L - sigma * B).solve
 

@@ -17,7 +17,7 @@ def _check_invariants(tr, mesh, F):
         for kind, vs in (("minimum", cp.minima), ("saddle", cp.saddles), ("maximum", cp.maxima)):
             mine = np.sort(tr.vertex[alive & (tr.kind == kind), j])
             np.testing.assert_array_equal(mine, np.sort(vs))
-        assert tr.euler_characteristic(j) == S.euler_characteristic == cp.euler_characteristic
+        assert tr.euler_characteristic[j] == S.euler_characteristic == cp.euler_characteristic
     # every track ends in an event or at the last scale, and lives on one interval
     ended = {t for e in tr.events if e["kind"] in ("cancel", "death", "merge") for t in e["tracks"][:1]}
     ended |= {e["tracks"][1] for e in tr.events if e["kind"] == "cancel"}
@@ -249,7 +249,7 @@ def test_chi_at_every_scale_on_genus_two():
     Ft = o3dheat.heat_flow((V, F), f, t)
     tr = o3dheat.track_critical_points((V, F), Ft, t)
     _check_invariants(tr, (V, F), Ft)
-    assert all(tr.euler_characteristic(j) == -2 for j in range(len(t)))
+    assert tr.euler_characteristic.tolist() == [-2] * len(t)
 
 
 def test_lifetime_features_are_critical_points_of_the_field_with_the_truncated_kernel_too(monkeypatch):
@@ -292,3 +292,31 @@ def test_text_radius_and_a_scale_past_the_end_are_one_line_errors():
     with pytest.raises(o3dheat.MeshError, match="scale must be an index of the 2 scales"):
         tr.features(99)
     assert np.array_equal(tr.features(-2), tr.features(0))
+
+
+def test_euler_characteristic_is_an_attribute_like_first_last_and_lifetime():
+    """Issue 30: Tracks.euler_characteristic was the one method among attributes (first, last,
+    lifetime, positions); it is a (T,) array now, and the former call still works with a warning."""
+    import warnings
+
+    m = o3d.t.geometry.TriangleMesh.create_torus()
+    x = m.vertex.positions.numpy()[:, 0].astype(np.float64)
+    t = [0.0, 0.1, 0.2]
+    tr = o3dheat.track_critical_points(m, np.c_[x, 2 * x, 3 * x], t)
+    assert isinstance(vars(o3dheat.Tracks)["euler_characteristic"], property)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # reading the attribute says nothing
+        chi = tr.euler_characteristic
+        assert isinstance(chi, np.ndarray) and chi.shape == (len(t),) and chi.dtype == np.int64
+        assert chi.tolist() == [0, 0, 0] and repr(chi) == "array([0, 0, 0])"
+        assert type(chi == 0) is np.ndarray and type(chi + 1) is np.ndarray  # what is computed is plain
+        assert np.array_equal(chi, [o3dheat.critical_points(m, c).euler_characteristic for c in (x, 2 * x, 3 * x)])
+    # the former method: the int at a scale, with a DeprecationWarning naming the new spelling
+    with pytest.warns(DeprecationWarning, match=r"write tr\.euler_characteristic\[scale\]"):
+        assert tr.euler_characteristic(1) == 0
+    with pytest.warns(DeprecationWarning):
+        value = tr.euler_characteristic(scale=-1)
+    assert type(value) is int and value == 0
+    # a subset keeps the invariant only for what it keeps: the sum over its tracks
+    kept = tr.subset(tr.kind != "saddle")
+    assert kept.euler_characteristic.tolist() == [2, 2, 2]
