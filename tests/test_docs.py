@@ -233,3 +233,30 @@ def test_studies_page_states_the_kernels_per_resampling():
 def test_readme_says_the_demo_counts_saddles_with_multiplicity():
     readme = " ".join((DOCS.parent / "README.md").read_text().split())
     assert re.search(r"\d+ critical points in the noisy input \([^)]*saddle counted with its multiplicity", readme)
+
+
+def test_the_descriptors_study_page_quotes_the_shipped_table():
+    """Issue 31: every number of "Which descriptor survives resampling" is the shipped CSV's, as
+    scripts/study_descriptors.py prints it."""
+    import importlib.util
+
+    pytest.importorskip("pandas")
+    spec = importlib.util.spec_from_file_location("study_descriptors", DOCS.parent / "scripts" / "study_descriptors.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    t, overall, per_kind, ratio = mod.tables(DOCS / "study_descriptors.csv")
+    text = (DOCS / "details" / "studies.md").read_text()
+    section = text[text.index("## Which descriptor survives resampling"):]
+    flat = " ".join(section.split())
+    assert f"{len(t)} rows" in flat
+    for name, row in overall.drop(index="critical_points").iterrows():
+        assert f"| {name} | " + " | ".join(f"{v:.3g}" for v in row) + " |" in section, name
+    for d, kind in (("hks_density", "anisotropic"), ("wks", "anisotropic"), ("smooth_height", "anisotropic"),
+                    ("hks_density", "jitter"), ("wks", "jitter"), ("smooth_height", "jitter")):
+        assert f"{per_kind.loc[d, kind]:.3g}" in flat, (d, kind)
+    for d in ("smooth_height", "diagram", "si_hks", "hks_density", "wks"):
+        for k in ("lumped", "voronoi", "linear"):
+            assert f"{ratio.loc[d, k]:.2f}x" in flat, (d, k)
+    c = t[t["descriptor"] == "critical_points"].groupby("kernel")["rel_l2"]
+    for k in ("weighted", "lumped", "voronoi", "linear"):
+        assert f"{c.mean()[k]:.3f}" in flat and f"{round(100 * (c.apply(lambda s: (s > 0).mean()))[k])}%" in flat, k
