@@ -31,7 +31,7 @@ from o3dheat import checks
 from o3dheat.errors import MeshError, SolverError
 from o3dheat.typing import FieldLike, MeshLike, TimesLike
 
-from . import _truncation, spectrum
+from . import _truncation, signatures, spectrum
 from .spectrum import Spectrum, all_zero
 from .variants import (
     GRIDS,
@@ -342,60 +342,10 @@ class HeatKernel:
             return h
         return h, _truncation.hks_bound(self, t, form, self._WX)
 
-    def wks(self, energies: int | Sequence[float] = 100, sigma: float | None = None,
-            return_bound: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-        """Wave kernel signature (Aubry et al. 2011) on this kernel's rates and eigenvectors:
-        :func:`o3dheat.spectral.signatures.wks` (formula, defaults, truncation bound there).
-
-        Parameters
-        ----------
-        energies : int or (E,) array_like
-            That many of Aubry's log-energies, or the log-energies (within ``log λ_2 .. log λ_k``).
-        sigma : float, optional
-            Filter width in log-energy (> 0); default 6 times the spacing of the energies.
-        return_bound : bool
-            Also return the truncation bound per vertex and energy.
-
-        Returns
-        -------
-        (n, E) float64 ndarray
-            With ``return_bound``: ``(wks, bound)``.
-
-        Examples
-        --------
-        >>> import open3d as o3d, o3dheat
-        >>> K = o3dheat.heat_kernel(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16), k=30)
-        >>> K.wks(8).shape
-        (482, 8)
-        """
-        from .signatures import wks
-
-        return wks(self, energies, sigma, return_bound)
-
-    def si_hks(self, frequencies: int = 8, grid: tuple[float, float, float, float] | None = None) -> np.ndarray:
-        """Scale-invariant HKS (Bronstein & Kokkinos 2010): :func:`o3dheat.spectral.signatures.si_hks`.
-
-        Parameters
-        ----------
-        frequencies : int
-            Lowest Fourier magnitudes kept.
-        grid : (alpha, tau_from, tau_to, tau_step), optional
-            Times ``alpha ** tau`` (default :data:`o3dheat.spectral.signatures.SI_HKS_GRID`).
-
-        Returns
-        -------
-        (n, frequencies) float64 ndarray
-
-        Examples
-        --------
-        >>> import open3d as o3d, o3dheat
-        >>> K = o3dheat.heat_kernel(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 16), k=30)
-        >>> K.si_hks(6).shape
-        (482, 6)
-        """
-        from .signatures import SI_HKS_GRID, si_hks
-
-        return si_hks(self, frequencies, SI_HKS_GRID if grid is None else grid)
+    #: Wave kernel signature on this kernel's rates and eigenvectors: :func:`o3dheat.spectral.signatures.wks`.
+    wks = signatures.wks
+    #: Scale-invariant HKS of this kernel: :func:`o3dheat.spectral.signatures.si_hks`.
+    si_hks = signatures.si_hks
 
     def scales(self, count: int = 10, grid: str = "paper") -> np.ndarray:
         """Times for a scale sweep, ``count`` of them, increasing.

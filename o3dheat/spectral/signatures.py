@@ -43,7 +43,7 @@ import numpy as np
 from o3dheat import checks
 from o3dheat.errors import MeshError
 
-from ._truncation import inverse_mass_bound
+from .spectrum import inverse_mass_bound
 
 if TYPE_CHECKING:
     from .kernel import HeatKernel
