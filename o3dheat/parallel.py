@@ -293,10 +293,17 @@ def blas_one_thread() -> Iterator[None]:
     """BLAS (numpy's and scipy's OpenBLAS, MKL, ...) limited to one thread inside a ``with``.
 
     For loops that o3dheat parallelizes itself: two thread pools on the same cores slow each
-    other down, and OpenBLAS threads spin for a while after each call. Through threadpoolctl
-    (>= 3.8), which lets one Python thread at a time control OpenBLAS' process-wide setting:
-    called from another thread while that one is alive, the limit is not applied (results are
-    the same, only slower), and overlapping blocks cannot leave a wrong setting behind.
+    other down, and OpenBLAS threads spin for a while after each call. And for reproducible
+    results: BLAS sums depend on its thread count. Through threadpoolctl (>= 3.8).
+
+    The setting is the process's (OpenBLAS has one thread pool), so the blocks of all threads
+    share one limit, counted: the first block to enter sets one thread, the last to leave
+    restores what the first found (unless something else changed it meanwhile). Every block
+    runs on one BLAS thread from start to end, whatever other threads do, and concurrent solves
+    give the serial results. (Plain ``threadpool_limits`` blocks in several threads did not: the
+    first to leave put the threads back under the others, the last left one thread for good.) A
+    caller's own ``threadpool_limits`` block in another thread keeps its setting while it lasts
+    (threadpoolctl lets one thread at a time set OpenBLAS' count).
 
     Examples
     --------
@@ -306,9 +313,54 @@ def blas_one_thread() -> Iterator[None]:
     4.0
     """
     try:
-        from threadpoolctl import threadpool_limits
+        from threadpoolctl import ThreadpoolController
     except ImportError:  # a dependency; without it BLAS keeps its threads
         yield
         return
-    with threadpool_limits(1, user_api="blas"):
+    with _BLAS_LOCK:
+        if _BLAS["depth"] == 0:
+            blas = ThreadpoolController().select(user_api="blas")
+            _BLAS["limiter"] = (blas, blas.limit(limits=1, user_api="blas"))
+            _release_blas_control()  # the last block to leave may run in another thread
+        _BLAS["depth"] += 1
+        _LOCAL.blas = getattr(_LOCAL, "blas", 0) + 1
+    try:
         yield
+    finally:
+        with _BLAS_LOCK:
+            _BLAS["depth"] -= 1
+            _LOCAL.blas -= 1
+            if _BLAS["depth"] == 0:
+                held, _BLAS["limiter"] = _BLAS["limiter"], None
+                if held is not None and {i["num_threads"] for i in held[0].info()} <= {1}:  # still ours
+                    held[1].restore_original_limits()
+                    _release_blas_control()
+
+
+#: the blocks of :func:`blas_one_thread` inside, in every thread, and the limit they share (the
+#: BLAS libraries' controller and its limiter)
+_BLAS: dict[str, Any] = {"depth": 0, "limiter": None}
+_BLAS_LOCK = threading.Lock()  # made anew in a forked child, like _POOL_LOCK
+
+
+def _release_blas_control():
+    """Give up threadpoolctl's control of OpenBLAS if this thread holds it: threadpoolctl (>= 3.8)
+    lets one thread at a time set OpenBLAS' process-wide thread count (the last that set it), and
+    the last block of :func:`blas_one_thread` to leave, in any thread, must restore the count."""
+    try:
+        from threadpoolctl import OpenBLASController
+    except ImportError:  # an older threadpoolctl: any thread sets the count
+        return
+    OpenBLASController.clear_controlling_thread()
+
+
+def _blas_after_fork():
+    global _BLAS_LOCK
+    _BLAS_LOCK = threading.Lock()
+    _BLAS["depth"] = getattr(_LOCAL, "blas", 0)  # only the forking thread's blocks go on in the child
+    if _BLAS["depth"] == 0:
+        _BLAS["limiter"] = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_blas_after_fork)

@@ -101,6 +101,60 @@ def test_blas_one_thread_and_back():
         assert _blas_threads() == before
 
 
+@pytest.fixture
+def two_blas_threads():
+    """BLAS set to two threads, with no thread holding threadpoolctl's control of OpenBLAS (as in a
+    fresh process); put back afterwards."""
+    from threadpoolctl import OpenBLASController, ThreadpoolController
+
+    blas = ThreadpoolController().select(user_api="blas")
+    limiter = blas.limit(limits=2)
+    OpenBLASController.clear_controlling_thread()
+    try:
+        if min(_blas_threads()) < 2:
+            pytest.skip("BLAS cannot run two threads here")
+        yield
+    finally:
+        OpenBLASController.clear_controlling_thread(force=True)
+        limiter.restore_original_limits()
+        OpenBLASController.clear_controlling_thread()
+
+
+def test_overlapping_blas_one_thread_blocks_in_threads(two_blas_threads):
+    """Issue 30: with threadpoolctl's blocks, the first thread to leave its block put BLAS back on
+    two threads under a thread still inside its own (whose results then changed: another rounding),
+    and the last left one thread behind for good. The blocks are counted: one thread inside any
+    block, the setting found by the first restored by the last."""
+    a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+    seen = {}
+
+    def first():
+        with parallel.blas_one_thread():
+            a_in.set()
+            b_in.wait(10)
+            seen["a"] = _blas_threads()
+        a_out.set()
+
+    def second():
+        a_in.wait(10)
+        with parallel.blas_one_thread():
+            b_in.set()
+            a_out.wait(10)  # the first block has ended: this one goes on
+            seen["b"] = _blas_threads()
+
+    threads = [threading.Thread(target=f) for f in (first, second)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(20)
+    assert set(seen["a"]) == {1}
+    assert set(seen["b"]) == {1}, "BLAS threads came back under a block still running"
+    assert min(_blas_threads()) == 2, "the blocks left BLAS on one thread"
+    with parallel.blas_one_thread():  # and the next block, in this thread, still works
+        assert set(_blas_threads()) == {1}
+    assert min(_blas_threads()) == 2
+
+
 def _child(q):
     with parallel.threads(2):
         q.put(parallel.run(lambda i: i + 1, [(i,) for i in range(4)]))

@@ -12,10 +12,9 @@ import logging
 import traceback
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from o3dheat.geometry import resample, transfer
-from o3dheat.parallel import threads
+from o3dheat.parallel import blas_one_thread, threads
 from o3dheat.spectral import HeatFlow, fem, heat_kernel, mass_matrix, variants
 from o3dheat.spectral.signatures import wks_energies
 from o3dheat.topology import Surface, critical_points, persistence, track_critical_points
@@ -146,13 +145,13 @@ def aligned(a):
     return out
 
 
-def reference(V, F, cfg):
-    """Reference descriptors, the times, the longest axis and the vertex areas of one mesh; or
+def reference(V, F, cfg, up="z"):
+    """Reference descriptors, the times, the up axis ("x", "y" or "z": the height's) and the vertex areas of one mesh; or
     ``{"error": message}``: a failure is a result (each task of the mesh reports it as its row),
     not an exception that Dask would log with its traceback in every worker."""
     try:
-        with threadpool_limits(1), threads(1):
-            axis = int(np.argmax(np.ptp(V, axis=0)))
+        with blas_one_thread(), threads(1):
+            axis = "xyz".index(up)
             desc, times = compute(V, F, cfg["kernels"], cfg["descriptors"], cfg["k"], None, axis,
                                        cfg["grid"], cfg["scales"], cfg.get("method", "spectral"))
             areas = np.asarray(mass_matrix((V, F), "lumped").diagonal())
@@ -189,7 +188,7 @@ def task(mesh_name, res_name, spec, ref, cfg):
     if "error" in ref:  # the reference failed: so does every task of its mesh
         return failed(mesh_name, res_name, kind, ref["error"])
     try:
-        with threadpool_limits(1), threads(1):
+        with blas_one_thread(), threads(1):
             params = {key: v for key, v in spec.items() if key not in ("kind", "name")}
             r = resample((ref["V"], ref["F"]), kind, **params)
             desc, _ = compute(r.V, r.F, cfg["kernels"], cfg["descriptors"], cfg["k"], ref["times"], ref["axis"],

@@ -53,12 +53,10 @@ import typing
 from collections.abc import Sequence
 from pathlib import Path
 
-from threadpoolctl import threadpool_limits
-
 from o3dheat import checks, spectral
 from o3dheat.errors import MeshError, SolverError
 from o3dheat.io import read_geometry, write_geometry
-from o3dheat.parallel import threads
+from o3dheat.parallel import blas_one_thread, threads
 from o3dheat.typing import PathLike
 
 from ._inputs import MANIFEST, expand, outputs
@@ -85,7 +83,7 @@ def _one(chain, src, dst, binary, single_threaded, name=None):
     named = _Named(src if name is None else name)  # as the user gave it
     log.addFilter(named)  # the warnings of a file's work say which file they are about
     try:
-        with threadpool_limits(1):  # BLAS results depend on its thread count; o3dheat's do not
+        with blas_one_thread():  # BLAS results depend on its thread count; o3dheat's do not
             if single_threaded:
                 with threads(1):
                     out = chain(read_geometry(src))

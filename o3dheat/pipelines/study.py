@@ -20,7 +20,7 @@ Descriptors (:data:`DESCRIPTORS`): "hks_<form>" for each HKS form of
 signature at ``max(scales, 2)`` log-energies of the reference's spectrum, Aubry's width, the same
 energies on every resampling: the ``t`` column holds them), "si_hks" (the scale-invariant HKS, 8
 frequencies, one row each), "smooth_height" (``Φ_t`` of the
-height along the reference's longest axis), "smooth_curvature" (``Φ_t`` of the FEM mean
+height along each mesh's up axis: the argument ``up``), "smooth_curvature" (``Φ_t`` of the FEM mean
 curvature), "eigenvalues" (λ_2..λ_k of the kernel's own eigenproblem, one row with scale 0),
 "critical_points" (the number of critical points of the smoothed height; both metrics are
 ``|c − c_ref| / c_ref``) and "track_lifetime" (do the extrema of the smoothed height live as long?
@@ -68,8 +68,8 @@ from pathlib import Path
 import numpy as np
 
 from o3dheat.errors import MeshError
-from o3dheat.geometry import KINDS, decimate, prepare
-from o3dheat.io import atomic_write, atomic_write_text, read_mesh, read_toml, sample_mesh
+from o3dheat.geometry import KINDS, decimate, prepare, up_axis
+from o3dheat.io import SAMPLES, atomic_write, atomic_write_text, read_mesh, read_toml, sample_mesh
 from o3dheat.spectral import heatflow, variants
 from o3dheat.typing import MeshLike, PathLike
 
@@ -178,7 +178,8 @@ def _cost(spec, n):
 def robustness_study(meshes: dict[str, MeshLike], resamplings: dict | list | str,
                      kernels: str | Sequence[str] | None = None, descriptors: str | Sequence[str] = DESCRIPTORS,
                      scales: int = 10, k: int = 100, out: PathLike | None = None, scheduler: object = None,
-                     progress: bool | None = None, grid: str = "paper", method: str = "spectral") -> pd.DataFrame:
+                     progress: bool | None = None, grid: str = "paper", method: str = "spectral",
+                     up: str | dict[str, str] = "auto") -> pd.DataFrame:
     """Run a robustness study (see the module docstring for what is measured).
 
     Parameters
@@ -218,6 +219,11 @@ def robustness_study(meshes: dict[str, MeshLike], resamplings: dict | list | str
         k eigenpairs, the paper's) or "exact" (the full kernel, :class:`o3dheat.HeatFlow <o3dheat.spectral.heatflow.HeatFlow>`: the
         truncation no longer smooths, and resamplings need no eigensolve for these descriptors).
         The scales stay those of each kernel's reference spectrum either way.
+    up : str or dict
+        The axis of "smooth_height" (and of the topological descriptors' field), for all meshes or
+        per mesh name: "x", "y", "z", or "auto", the rule of :func:`o3dheat.geometry.up.up_axis` (a
+        mesh given here has no file: z; :func:`load_config` passes each mesh's own, from its file's
+        format: y for the OBJ and PLY samples).
 
     Returns
     -------
@@ -235,6 +241,7 @@ def robustness_study(meshes: dict[str, MeshLike], resamplings: dict | list | str
     [['weighted', 'hks_density', 1], ['weighted', 'hks_density', 2], ['weighted', 'hks_density', 3]]
     """
     cfg, items = _settings(meshes, resamplings, kernels, descriptors, scales, k, progress, grid, method)
+    cfg["up"] = {str(name): up_axis(up.get(name, "auto") if isinstance(up, dict) else up)[0] for name in meshes}
     arrays = {}
     for name, mesh in meshes.items():
         p = prepare(mesh)
@@ -315,7 +322,7 @@ def _run_here(todo, arrays, cfg, done):
     refs = {}
     for mname, rname, spec in todo:
         if mname not in refs:
-            refs[mname] = reference(*arrays[mname], cfg)
+            refs[mname] = reference(*arrays[mname], cfg, cfg["up"][str(mname)])
         done(mname, rname, task(mname, rname, spec, refs[mname], cfg))
 
 
@@ -327,7 +334,7 @@ def _run_on(client, todo, arrays, cfg, done):
     needed = sorted({m for m, _, _ in todo})
     order = sorted(todo, key=lambda x: -_cost(x[2], len(arrays[x[0]][0])))
     top = len(order) + 1
-    refs = {m: client.submit(reference, *arrays[m], cfg, pure=False, priority=top) for m in needed}
+    refs = {m: client.submit(reference, *arrays[m], cfg, cfg["up"][str(m)], pure=False, priority=top) for m in needed}
     futures = {client.submit(task, m, r, s, refs[m], cfg, pure=False, priority=len(order) - i):
                (m, r, s) for i, (m, r, s) in enumerate(order)}
     for fut in as_completed(list(futures)):
@@ -400,8 +407,9 @@ def load_config(path: PathLike) -> dict:
         method = "spectral"              # or "exact": the full kernel for the smoothed descriptors
         kernels = ["weighted"]                           # of o3dheat.spectral.variants.VARIANTS (default: all)
         descriptors = ["hks_density", "smooth_height"]   # of DESCRIPTORS (default: all)
+        up = "auto"                      # the height's axis: the file format's rule (y for OBJ/PLY), or x/y/z
         [meshes]
-        bunny = "builtin:bunny@20000"    # bunny, airplane, bone, torus (@ decimates); or a file path
+        bunny = "builtin:bunny@20000"    # bunny, airplane, bone, cow, torus (@ decimates); or a file path
         [[resampling]]
         name = "decimate-70"
         kind = "decimate"
@@ -421,17 +429,17 @@ def load_config(path: PathLike) -> dict:
     >>> with open(os.path.join(d, "study.toml"), "w") as fh:
     ...     _ = fh.write('kernels = ["weighted"]\n[meshes]\nsphere = "s.ply"\n[[resampling]]\nkind = "jitter"\n')
     >>> kw = load_config(os.path.join(d, "study.toml"))
-    >>> sorted(kw), kw["kernels"], kw["resamplings"]
-    (['kernels', 'meshes', 'resamplings'], ['weighted'], [{'kind': 'jitter'}])
+    >>> sorted(kw), kw["kernels"], kw["resamplings"], kw["up"]       # a .ply file: y up
+    (['kernels', 'meshes', 'resamplings', 'up'], ['weighted'], [{'kind': 'jitter'}], {'sphere': 'y'})
     """
     path = Path(path)
     data = read_toml(path)
-    allowed = {"k", "scales", "grid", "method", "kernels", "descriptors", "meshes", "resampling"}
+    allowed = {"k", "scales", "grid", "method", "kernels", "descriptors", "meshes", "resampling", "up"}
     unknown = set(data) - allowed
     if unknown:
         raise MeshError(f"{path}: unknown settings {sorted(unknown)}; allowed: {sorted(allowed)}")
     expected = {"k": (int, "an integer"), "scales": (int, "an integer"), "grid": (str, "a string"),
-                "method": (str, "a string"),
+                "method": (str, "a string"), "up": (str, "one of \"auto\", \"x\", \"y\", \"z\""),
                 "kernels": (list, "a list of names"), "descriptors": (list, "a list of names"),
                 "meshes": (dict, "a [meshes] table of name = \"file or builtin:NAME\""),
                 "resampling": (list, "[[resampling]] tables")}
@@ -446,14 +454,18 @@ def load_config(path: PathLike) -> dict:
         raise MeshError(f"{path}: each mesh is a file path or \"builtin:NAME\" (a string), got {bad}")
     if not all(isinstance(r, dict) for r in data.get("resampling", [])):
         raise MeshError(f"{path}: each [[resampling]] is a table with a kind")
-    meshes = {}
+    meshes, up = {}, {}
     for name, src in (data.get("meshes") or {}).items():
         meshes[name] = _builtin(src) if src.startswith("builtin:") else read_mesh(path.parent / src)
+        # the up rule needs the file: a sample's own (the torus is made in Python: z)
+        name_of = src.partition(":")[2].partition("@")[0]
+        source = (SAMPLES.get(name_of) if src.startswith("builtin:") else path.parent / src)
+        up[name] = up_axis(data.get("up", "auto"), source)[0]
     res = data.get("resampling") or []
     if not meshes or not res:
         raise MeshError(f"{path}: needs a [meshes] table and at least one [[resampling]]")
     kw = {key: data[key] for key in ("k", "scales", "grid", "kernels", "descriptors") if key in data}
-    return {"meshes": meshes, "resamplings": res, **kw}
+    return {"meshes": meshes, "resamplings": res, "up": up, **kw}
 
 
 def _builtin(src):

@@ -36,13 +36,25 @@ LANCZOS_MIN_N = 10_000
 LANCZOS_MANY_K = (64, 3_000)  # (k, n): from k eigenpairs on n vertices up, Lanczos as well
 
 
-def _fix_signs(X, chunk=16):
-    """In place: the entry of largest magnitude of each column becomes positive (the first one on
-    ties). By column chunks shared out among threads: no n x k temporary."""
+#: magnitudes within this fraction of an eigenvector's largest one tie for its sign (:func:`_fix_signs`)
+SIGN_TIE = 1e-6
+
+
+def _fix_signs(X, chunk=16, tie=SIGN_TIE):
+    """In place: the entry of largest magnitude of each column becomes positive; entries whose
+    magnitudes are within ``tie`` of the largest (relative) tie, and the first of them decides.
+
+    On a symmetric mesh an eigenvector's largest magnitudes are equal, at symmetric vertices,
+    often with opposite signs: which one is largest is then decided by rounding, and a solve whose
+    rounding differed (BLAS on another thread count, another method) flipped the whole vector (a
+    difference of twice its largest entry). The first of the tied entries is the same in every
+    solve. By column chunks shared out among threads: no n x k temporary."""
 
     def fix(a, z):
         Xc = X[:, a:z]
-        s = np.sign(Xc[np.argmax(np.abs(Xc), axis=0), np.arange(Xc.shape[1])])
+        A = np.abs(Xc)
+        first = np.argmax(A >= (1.0 - tie) * A.max(axis=0), axis=0)
+        s = np.sign(Xc[first, np.arange(Xc.shape[1])])
         s[s == 0] = 1.0
         Xc *= s
 
@@ -237,11 +249,25 @@ def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
         perm = reverse_cuthill_mckee(sp.csr_matrix(L), symmetric_mode=True)
         L, B = _permuted(L, perm), _permuted(B, perm)
         t_perm = time.perf_counter() - t0
-        if method == "arpack":
-            lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, seed)
-        else:
-            lam, X, used, t_fac, t_sol = _solve_lanczos(L, B, k, s, backend, seed, tol, block)
+        # BLAS on one thread from the factorization to the end (as in a small dense solve): BLAS
+        # sums (ARPACK's dot products, a factorization's blocks) depend on its thread count, and
+        # while another thread is inside parallel.blas_one_thread that count is one; the same
+        # count in every call gives the same results, serial or concurrent, bit for bit
+        with parallel.blas_one_thread():
+            if method == "arpack":
+                lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, seed)
+            else:
+                lam, X, used, t_fac, t_sol = _solve_lanczos(L, B, k, s, backend, seed, tol, block)
     t0 = time.perf_counter()
+    with parallel.blas_one_thread():
+        lam, X, res = _finish(lam, X, L, B, B_in, perm, method)
+    t_sol += t_perm + time.perf_counter() - t0
+    return lam, X, used, s, res, {"factorize": t_fac, "solve": t_sol, "cache": False}
+
+
+def _finish(lam, X, L, B, B_in, perm, method):
+    """Eigenpairs of a solver (in the numbering of ``L``, ``B``: ``perm`` of ``B_in``'s) sorted,
+    checked, B-orthonormal, numbered back, with fixed signs and canonical bases: ``(λ, X, residuals)``."""
     order = np.argsort(lam, kind="stable")
     if np.any(order != np.arange(len(lam))):
         lam, X = lam[order], X[:, order]
@@ -257,5 +283,4 @@ def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
     # after the signs: a multiple eigenvalue's canonical basis has its own signs (the polar factor
     # is unique), where "largest entry" ties to rounding on a symmetric mesh
     X = _canonical_bases(lam, X, B_in, weyl_gap(B_in))
-    t_sol += t_perm + time.perf_counter() - t0
-    return lam, X, used, s, res, {"factorize": t_fac, "solve": t_sol, "cache": False}
+    return lam, X, res

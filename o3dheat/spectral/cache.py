@@ -33,7 +33,7 @@ __all__ = ["SpectrumCache", "SPECTRA", "memoized", "memoized_has", "clear_cache"
 
 log = logging.getLogger("o3dheat")
 
-_CACHE_VERSION = "2"
+_CACHE_VERSION = "3"  # 3: the sign rule of issue 30 (entries of 2 may have other signs)
 
 
 def default_cache_dir() -> Path:

@@ -15,10 +15,12 @@ problems, or ``k`` close to ``n``, are solved densely.
 
 Conventions: eigenvalues ascending and ``>= 0`` (``L`` is positive semi-definite); eigenvectors
 B-orthonormal (``Xᵀ B X = I``); the sign of each eigenvector is fixed so that its entry of largest
-magnitude is positive (first such entry on ties). Within a multiple eigenvalue (equal to the
-solver's accuracy) the basis is a canonical one of the eigenspace, whatever basis the solver
-found (``_solvers._canonical_bases``): the same, to rounding, for every method, thread count and
-run; bit for bit only where the eigenvalues are simple.
+magnitude is positive, magnitudes within 1e-6 (relative) of the largest counting as tied and the
+first tied entry deciding (on a symmetric mesh the largest magnitudes are equal at mirrored
+vertices, often with opposite signs: rounding must not choose). Within a multiple eigenvalue
+(eigenvalues equal to 1e-9 relative) the basis is a canonical one of the eigenspace, with its own
+signs, whatever basis the solver found (``_solvers._canonical_bases``). What is reproducible, and
+to what accuracy: the Notes of :func:`eigensolve`.
 """
 
 from __future__ import annotations
@@ -323,6 +325,22 @@ def eigensolve(mesh: MeshLike, k: int = 100, mass: str = "consistent", sigma: fl
         Bad mesh, ``k`` out of range, unknown ``mass``, positive ``sigma``.
     SolverError
         Factorization or eigensolver failure.
+
+    Notes
+    -----
+    Reproducibility (eigenvectors compared column by column, in the module's sign and basis rules):
+
+    - Called again, or from several threads at once, the serial result: each solve runs BLAS on one
+      thread throughout, whatever other threads do (:func:`o3dheat.parallel.blas_one_thread`), and
+      o3dheat's threads do not change sums: the same arithmetic (with OpenBLAS, the same bits). But
+      "dense" above 1200 vertices runs LAPACK on the process's BLAS threads, one while another
+      thread is in an o3dheat solve: it then agrees as below, eigenvalues to about 1e-12 relative.
+    - Across methods, backends and machines: eigenvalues to the solver's accuracy (``tol``, or
+      machine precision); a multiple eigenvalue's canonical basis to that accuracy (1e-10 at
+      machine precision); other eigenvectors, signs included, to that accuracy over the relative
+      gap to the nearest eigenvalue (a pair 1e-8 apart, relative: about 1e-6).
+    - Not across methods: a multiple eigenvalue cut by ``k`` (λ_k equal to the uncomputed
+      λ_{k+1}) has some basis of part of its eigenspace. Ask for a ``k`` that ends a cluster.
 
     Examples
     --------

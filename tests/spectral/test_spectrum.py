@@ -419,6 +419,139 @@ def test_multiple_eigenvalues_have_one_basis_whatever_the_solver():
     np.testing.assert_allclose(X, ref.eigenvectors, atol=1e-10)
 
 
+def _uv_sphere():
+    """Open3D's UV sphere (762 vertices): double eigenvalues (its rotations by 2π/40), and simple
+    eigenvectors whose largest magnitudes are equal at mirrored vertices, with opposite signs."""
+    return o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20)
+
+
+def _assert_same_spectrum(s, ref, simple_atol):
+    """Eigenvalues to 1e-12 relative; eigenvectors of multiple eigenvalues (equal to 1e-9) to 1e-10,
+    the others to ``simple_atol`` (which a sign flip, 2 max |x| ~ 1, exceeds)."""
+    lam = ref.eigenvalues
+    np.testing.assert_allclose(s.eigenvalues, lam, rtol=1e-12, atol=1e-12)
+    tied = np.diff(lam) <= 1e-9 * np.maximum(lam[1:], 1.0)
+    multiple = np.r_[tied, False] | np.r_[False, tied]
+    assert multiple.sum() >= 10  # the mesh has them
+    d = np.abs(s.eigenvectors - ref.eigenvectors).max(axis=0)
+    assert d[multiple].max() < 1e-10, f"columns {np.flatnonzero(d > 1e-10).tolist()} differ by {d.max():.3g}"
+    assert d.max() < simple_atol, f"columns {np.flatnonzero(d > simple_atol).tolist()} differ by {d.max():.3g}"
+
+
+def test_concurrent_eigensolves_give_the_serial_result(monkeypatch):
+    """Issue 30: four threads solving one sphere at once: one result's eigenvectors differed from the
+    serial run's by 1.1-1.6. A dense solve pins BLAS to one thread (process-wide); the first
+    thread to leave its pin put two threads back under another thread still solving, whose
+    rounding then differed, and a largest entry tied to rounding flipped its eigenvector. Forced
+    here: the second solve runs its LAPACK call after the first solve has ended."""
+    import threading
+    import types
+
+    import scipy.linalg as sla
+    from threadpoolctl import OpenBLASController, ThreadpoolController, threadpool_info
+
+    import o3dheat.spectral._solvers as solvers
+
+    def blas_threads():
+        return {p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
+
+    mesh = _uv_sphere()
+    ref = o3dheat.eigensolve(mesh, k=30, method="dense", cache=False)
+    limiter = ThreadpoolController().select(user_api="blas").limit(limits=2)  # as a fresh process with 2+ cores
+    OpenBLASController.clear_controlling_thread()
+    try:
+        if min(blas_threads()) < 2:
+            pytest.skip("BLAS cannot run two threads here")
+        first_in, second_in, first_done = threading.Event(), threading.Event(), threading.Event()
+        seen, out = {}, {}
+
+        def eigh(*args, **kwargs):
+            name = threading.current_thread().name
+            if name == "first":
+                first_in.set()
+                second_in.wait(20)  # both solves inside their BLAS pins
+            else:
+                second_in.set()
+                first_done.wait(20)  # the first solve has ended: the second goes on
+            seen[name] = blas_threads()
+            return sla.eigh(*args, **kwargs)
+
+        monkeypatch.setattr(solvers, "sla", types.SimpleNamespace(**{**vars(sla), "eigh": eigh}))
+
+        def solve(name, after=None):
+            if after is not None:
+                after.wait(20)
+            try:
+                out[name] = o3dheat.eigensolve(mesh, k=30, method="dense", cache=False)
+            finally:
+                if name == "first":
+                    first_done.set()
+
+        threads = [threading.Thread(target=solve, name="first", args=("first",)),
+                   threading.Thread(target=solve, name="second", args=("second", first_in))]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(60)
+        assert seen == {"first": {1}, "second": {1}}, "a dense solve ran on BLAS threads another thread put back"
+        for name in ("first", "second"):
+            _assert_same_spectrum(out[name], ref, 1e-9)
+    finally:
+        OpenBLASController.clear_controlling_thread(force=True)
+        limiter.restore_original_limits()
+        OpenBLASController.clear_controlling_thread()
+
+
+@pytest.mark.parametrize("method", ["dense", "arpack", "lanczos"])
+def test_threads_at_once_give_the_serial_result(method):
+    """Issue 30, unforced: 4 threads x 3 rounds of each method against the serial solve."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    mesh = _uv_sphere()
+    ref = o3dheat.eigensolve(mesh, k=30, method=method, cache=False)
+    for _ in range(3):
+        with ThreadPoolExecutor(4) as pool:
+            outs = list(pool.map(lambda _: o3dheat.eigensolve(mesh, k=30, method=method, cache=False), range(4)))
+        for s in outs:
+            _assert_same_spectrum(s, ref, 1e-9)
+
+
+def test_signs_do_not_follow_rounding():
+    """Issue 30: the sign rule "largest magnitude positive" was decided by rounding where two
+    largest magnitudes are equal with opposite signs (mirrored vertices): a solve rounded otherwise
+    returned -x. Magnitudes within 1e-6 of the largest tie, and the first of them decides."""
+    from o3dheat.spectral._solvers import SIGN_TIE, _fix_signs
+
+    s = o3dheat.eigensolve(_uv_sphere(), k=30, method="dense", cache=False)
+    X, lam = s.eigenvectors, s.eigenvalues
+    A = np.abs(X)
+    top2 = -np.sort(-A, axis=0)[:2]
+    assert np.any((top2[0] - top2[1]) / top2[0] < 1e-11)  # ties to rounding: the case at stake
+    tied = np.diff(lam) <= 1e-9 * np.maximum(lam[1:], 1.0)
+    simple = ~(np.r_[tied, False] | np.r_[False, tied])  # (a multiple one's basis has its own signs)
+    first = np.argmax(A >= (1 - SIGN_TIE) * A.max(axis=0), axis=0)
+    assert np.all(X[first, np.arange(30)][simple] > 0)  # the rule, as documented
+    for seed in range(8):  # a rounding-sized change of any solve gives the same signs
+        noise = np.random.default_rng(seed).standard_normal(X.shape) * 1e-12 * A.max()
+        for sign in (1.0, -1.0):
+            np.testing.assert_allclose(_fix_signs(sign * X + noise)[:, simple], X[:, simple], atol=1e-10)
+
+
+def test_methods_agree_on_a_symmetric_mesh():
+    """Issue 30: on the UV sphere each method rounded the tied largest entries its own way, and
+    flipped other eigenvectors than the dense solver (differences up to 2.6 at k = 60). k = 30
+    ends a cluster; the near-double eigenvalues (relative gaps 3e-9..1e-8) leave their vectors
+    determined to about 1e-6."""
+    mesh = _uv_sphere()
+    ref = o3dheat.eigensolve(mesh, k=31, method="dense", cache=False)
+    assert ref.eigenvalues[30] > ref.eigenvalues[29] * (1 + 1e-6)  # k = 30 cuts no cluster
+    dense = o3dheat.eigensolve(mesh, k=30, method="dense", cache=False)
+    for method in ("arpack", "lanczos"):
+        s = o3dheat.eigensolve(mesh, k=30, method=method, cache=False)
+        np.testing.assert_allclose(s.eigenvalues, dense.eigenvalues, rtol=1e-9, atol=1e-10)
+        np.testing.assert_allclose(s.eigenvectors, dense.eigenvectors, atol=1e-5)
+
+
 def test_save_and_load_give_back_the_spectrum_and_refuse_what_is_not_one(tmp_path, irregular_mesh):
     """Issue 22: a saved spectrum had no loader. Spectrum.save writes everything (operators, areas,
     faces, bounds); Spectrum.load checks it before returning it."""
