@@ -6,8 +6,9 @@ symbolic analysis of the factors' pattern), :class:`Shifted` (a factor of ``W + 
 :func:`check_operators` (the operators of :meth:`o3dheat.HeatFlow.from_operators <o3dheat.spectral.heatflow.HeatFlow.from_operators>`),
 :func:`unit_columns`, :func:`null_parts`, :func:`geometry_key`, and the steps around the
 propagation of :meth:`o3dheat.HeatFlow.apply <o3dheat.spectral.heatflow.HeatFlow.apply>`: :func:`time_order`, :func:`check_converged`,
-:func:`finish`; :class:`FlowReport` (re-exported by :mod:`o3dheat.spectral.heatflow`) and
-:func:`check_transfer`.
+:func:`finish`; :class:`FlowReport` (re-exported by :mod:`o3dheat.spectral.heatflow`),
+:func:`check_transfer` and, for transfer functions, :func:`transfer_plan` (the shift chosen for φ,
+and the a priori error bound that certifies the result) with :func:`chebyshev_bound`.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.fft import dct
 from scipy.sparse.csgraph import connected_components
 
 from o3dheat import parallel
@@ -29,6 +31,12 @@ from .linalg import analyze, factorize
 
 #: ratio τ_max/τ_min above which the times are split over two shifts (:func:`shift_groups`)
 SPLIT_RANGE = 300.0
+#: Chebyshev points of :func:`chebyshev_bound`: the first try, and the most (a kernel not resolved by
+#: then is too rough to certify)
+CHEBYSHEV_POINTS = (256, 2**14)
+#: Chebyshev coefficients below this many ulps of ``max(1, max |g|)`` are rounding noise
+#: (:func:`chebyshev_bound`): left out of the tail, and added back once as its floor
+CHEBYSHEV_NOISE = 32.0
 
 
 
@@ -90,6 +98,170 @@ def shift(tau_min: float, tau_max: float) -> float:
     return float(2.0 ** (np.round(4.0 * (np.log2(float(tau_min)) + np.log2(factor))) / 4.0))
 
 
+def chebyshev_bound(rate, taus, gamma, lam_lo, lam_hi):
+    """A priori bounds of the error of :func:`o3dheat.spectral.krylov.propagate` after each number of
+    steps, for the kernel ``exp(−τ rate(λ))`` with the shift ``γ``: ``(bound, resolved)``.
+
+    Why it holds: ``S = (W + γL)⁻¹ W`` is W-self-adjoint; on the part of a field outside the null
+    space its eigenvalues ``s = 1/(1 + γλ)`` lie in ``I = [1/(1 + γ λ_hi), 1/(1 + γ λ_lo)]`` when
+    ``λ_lo <= λ_2 <= λ_max <= λ_hi``, and so do the Ritz values of every Lanczos step. After m steps
+    the approximation ``β₀ V_m g(T_m) e₁`` of ``g(S) f₁`` (``g(s) = exp(−τ rate((1/s − 1)/γ))``) is
+    exact for every polynomial p of degree < m, so its W-norm error is at most
+    ``β₀ (max_{spec S} |g − p| + max_{spec T_m} |g − p|) <= 2 β₀ max_I |g − p|``; with p the
+    Chebyshev series of g on I cut after degree m − 1, ``max_I |g − p| <= Σ_{j >= m} |a_j|``. The
+    bound holds for every field, uniformly in the mesh size, whatever the analyticity of the rate
+    (a branch point at λ = 0 such as that of √λ only slows the decay of the ``a_j``).
+
+    The ``a_j`` come from g at N Chebyshev points (a DCT), N doubled from 256 until the last eighth
+    of them is rounding noise (below :data:`CHEBYSHEV_NOISE` ulps of ``max(1, max |g|)``; such
+    coefficients are left out of the sums and the noise level is added once, for all of them).
+
+    Parameters
+    ----------
+    rate : callable
+        ``λ (N,) -> rate (N,)``, the rate less its value at 0 (``φ − φ(0)``).
+    taus : (T,) float64 ndarray
+        Times τ > 0.
+    gamma, lam_lo, lam_hi : float
+        The shift, a lower bound of the smallest non-zero eigenvalue of ``W⁻¹L``, an upper bound of
+        the largest (``inf``: none known; then ``I`` reaches 0).
+
+    Returns
+    -------
+    bound : (T, N) float64 ndarray
+        ``bound[:, m]``: the bound of the relative error (to ``β₀ = ‖f − f₀‖_W``) after m steps.
+    resolved : bool
+        False when ``CHEBYSHEV_POINTS[1]`` points did not resolve g (the rate is too rough on the
+        spectrum for any number of steps up to that), or g is not finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from o3dheat.spectral._flow_setup import chebyshev_bound
+    >>> b, ok = chebyshev_bound(np.sqrt, np.array([0.1, 1.0]), 0.01, 1.0, 1e4)
+    >>> ok, [int(np.argmax(b[i] <= 1e-8)) for i in range(2)]   # steps for 1e-8 at each time
+    (True, [64, 74])
+    """
+    a = 0.0 if not np.isfinite(lam_hi) else 1.0 / (1.0 + gamma * lam_hi)
+    b = 1.0 / (1.0 + gamma * lam_lo)
+    taus = np.asarray(taus, dtype=np.float64)
+    n = CHEBYSHEV_POINTS[0]
+    while True:
+        x = np.cos(np.pi * (np.arange(n) + 0.5) / n)  # first kind: never s = 0
+        s = 0.5 * (a + b) + 0.5 * (b - a) * x
+        r = np.asarray(rate((1.0 / s - 1.0) / gamma), dtype=np.float64)
+        with np.errstate(over="ignore", invalid="ignore"):
+            g = np.exp(-np.multiply.outer(taus, r))
+        if not np.all(np.isfinite(g)):
+            return np.full((len(taus), 1), np.inf), False
+        c = np.abs(dct(g, type=2, axis=1)) / n
+        c[:, 0] /= 2
+        noise = CHEBYSHEV_NOISE * np.finfo(np.float64).eps * np.maximum(g.max(axis=1), 1.0)
+        c[c <= noise[:, None]] = 0.0
+        resolved = not c[:, -(n // 8):].any()
+        if resolved or n >= CHEBYSHEV_POINTS[1]:
+            tail = np.cumsum(c[:, ::-1], axis=1)[:, ::-1]
+            return 2.0 * (tail + noise[:, None]), resolved
+        n *= 2
+
+
+@dataclass
+class Plan:
+    """The propagation of a transfer function's kernel (:func:`transfer_plan`): the shift, the steps it
+    needs for ``tol`` (None: not within ``max_steps``) and ``bound`` (T, m + 1), the a priori error
+    bound after each number of steps (:func:`chebyshev_bound`); ``resolved`` False when the kernel
+    is too rough to be bounded at all."""
+
+    gamma: float
+    steps: int | None
+    bound: np.ndarray
+    resolved: bool
+
+
+def transfer_plan(rate, taus, lam_lo, lam_hi, tol, max_steps):
+    """The shift for a transfer function's kernel at the times ``taus`` (sorted, > 0) and its certificate.
+
+    The shift of :func:`shift` is fitted to ``exp(−τλ)``; other rates want others (``λ/(1 + λ)``
+    converges in 3 to 7 steps with ``γ ≈ 1``, where the τ-fitted shift took 90 to 120; ``√λ``,
+    whose branch point at 0 must stay away from the spectrum of ``S``, wants ``γλ_2`` of about
+    0.02 at small times). So γ is the one of least steps by the a priori bound of
+    :func:`chebyshev_bound`, over powers of two from ``0.01/λ_hi`` to ``100/λ_lo``, then refined
+    to quarter powers (the grid of :func:`shift`, so that factors are shared). The bound is also
+    the propagation's stopping rule and reported estimate: unlike the difference of iterates, it
+    cannot lag behind the error when the convergence is slow.
+
+    Parameters
+    ----------
+    rate : callable
+        ``φ − φ(0)`` on the eigenvalues of ``W⁻¹L`` (vectorised).
+    taus : (T,) float64 ndarray
+        Times τ > 0, increasing.
+    lam_lo, lam_hi : float
+        Bounds of the non-zero spectrum of ``W⁻¹L`` (see :func:`chebyshev_bound`).
+    tol : float
+        The relative error asked.
+    max_steps : int
+        Most steps.
+
+    Returns
+    -------
+    Plan
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from o3dheat.spectral._flow_setup import transfer_plan
+    >>> p = transfer_plan(lambda lam: lam / (1 + lam), np.array([0.1, 1.0]), 1.0, 1e4, 1e-8, 1000)
+    >>> round(p.gamma, 3), p.steps          # γ = 2^(1/4): λ/(1 + λ) is nearly linear in s = 1/(1 + γλ)
+    (1.189, 6)
+    """
+    taus = np.asarray(taus, dtype=np.float64)
+    top = lam_hi if np.isfinite(lam_hi) else 1e6 * lam_lo
+
+    def plan(q):
+        gamma = float(2.0 ** (q / 4.0))
+        bound, resolved = chebyshev_bound(rate, taus, gamma, lam_lo, lam_hi)
+        bound = bound[:, :max_steps + 1]
+        ok = np.flatnonzero(bound.max(axis=0) <= tol) if resolved else []
+        steps = max(int(ok[0]), 1) if len(ok) else None
+        return Plan(gamma, steps, bound[:, :steps + 1] if steps else bound, resolved)
+
+    def cost(p):
+        return (p.steps if p.steps is not None else np.inf, float(p.bound[:, -1].max()))
+
+    lo, hi = np.floor(np.log2(0.01 / top)), np.ceil(np.log2(100.0 / lam_lo))
+    best = min((plan(4 * q) for q in np.arange(lo, max(hi, lo) + 1)), key=cost)
+    q0 = int(np.round(4 * np.log2(best.gamma)))
+    return min((plan(q) for q in range(q0 - 3, q0 + 4)), key=cost)
+
+
+def check_plan(plan, tol, max_steps, times, bounded=True):
+    """Raise :class:`~o3dheat.errors.ConvergenceError` when a transfer function's :class:`Plan` does
+    not reach ``tol`` (its times ``times``, paper convention; ``bounded``: whether the operator's
+    largest eigenvalue was bounded, else the plan's interval reached λ = ∞)."""
+    if plan.steps is not None:
+        return
+    span = f"times {times.min():.4g}..{times.max():.4g}"
+    if not bounded:
+        raise ConvergenceError(f"the heat flow with this transfer function cannot be certified at {span}: no bound "
+                               "of the operator's largest eigenvalue is known (the mass is neither diagonal nor "
+                               "diagonally dominant), and the kernel is too rough up to λ = ∞; use the spectral "
+                               "kernel (o3dheat.HeatKernel)")
+    if not plan.resolved:
+        raise ConvergenceError(
+            f"the heat flow did not reach tol={tol:g}: the transfer function makes the kernel exp(-(t/2) φ(λ)) "
+            f"too rough on this mesh's spectrum at {span} to be certified (not resolved by "
+            f"{CHEBYSHEV_POINTS[1]} Chebyshev points): use the spectral kernel (o3dheat.HeatKernel)")
+    reached = float(plan.bound[:, -1].max())
+    floor = 2.0 * CHEBYSHEV_NOISE * np.finfo(np.float64).eps
+    if reached <= 1.5 * floor:
+        raise ConvergenceError(f"the heat flow did not reach tol={tol:g} at {span}: with a transfer function the "
+                               f"result is certified to its rounding floor, about {reached:.1g}: ask tol >= {2 * floor:.0e}")
+    raise ConvergenceError(
+        f"the heat flow did not reach tol={tol:g} in {max_steps} steps at {span}: with this transfer function "
+        f"the a priori bound gets to {reached:.2g}; raise max_steps, or split the times")
+
+
 class Operators:
     """A mesh's operators for the flow: L, the mass W (None for the identity), the parts (the null
     space of L), a bound of the largest eigenvalue, the symbolic analysis of the factors' pattern
@@ -106,8 +278,10 @@ class Operators:
         # >= D/4 element by element (each element's mass has eigenvalues |t|/12 x {1, 1, 4})
         rows = abs_row_sums(self.L.indptr, self.L.data)
         diagonal = self.W is None or self.W.nnz == np.count_nonzero(self.W.diagonal())
-        if mass == "given" and not diagonal:  # no bound known for a mass built elsewhere
-            self.lam_max = None
+        if mass == "given" and not diagonal:  # a mass built elsewhere: λ_max(L) / λ_min(W), both by
+            # Gershgorin (None when W is not diagonally dominant: no bound known)
+            low = float(np.min(2.0 * self.W.diagonal() - abs_row_sums(self.W.indptr, self.W.data)))
+            self.lam_max = float(np.max(rows)) / low if low > 0 else None
         else:
             self.lam_max = float(np.max(rows / np.maximum(self.d, 1e-300))) * (4.0 if mass == "consistent" else 1.0)
         self._analysis = analysis
@@ -320,7 +494,9 @@ class FlowReport:
         The times (paper convention).
     estimate : (c, T) float64 ndarray
         A posteriori error estimate per column and time, relative to ``‖f − f₀‖_W``; every
-        entry is ``<= tol`` (0 at ``t = 0`` and for fields constant on each part).
+        entry is ``<= tol`` (0 at ``t = 0`` and for fields constant on each part). With a
+        transfer function φ: an a priori bound of the error, relative to ``exp(−(t/2) φ(0))
+        ‖f − f₀‖_W`` (:func:`chebyshev_bound`; the same for every column).
     steps : (c,) int64 ndarray
         Solves (Lanczos steps) per column, over all shifts.
     shifts : list of (float, (k,) int ndarray)

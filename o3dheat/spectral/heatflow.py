@@ -26,7 +26,11 @@ per input vertex (0 at unreferenced vertices, welded copies share their vertex's
 Accuracy: ``‖Φ_t f − result‖_W <= tol ‖f − f₀‖_W`` for every column and time, by the a
 posteriori estimate of :mod:`o3dheat.spectral.krylov` (``f₀`` the W-mean of ``f`` on each
 connected part, which is kept exactly); an answer whose estimate does not reach ``tol`` is never
-returned (:class:`o3dheat.errors.ConvergenceError`).
+returned (:class:`o3dheat.errors.ConvergenceError`). With a transfer function the estimate is a
+rigorous a priori bound instead, for the shift chosen for φ
+(:func:`o3dheat.spectral._flow_setup.transfer_plan`; it needs ``λ_2``, a small eigensolve, once
+per mesh), and the error is relative to ``exp(−(t/2) φ(0)) ‖f − f₀‖_W`` (the factor of the
+constants, applied exactly: larger than 1 when ``φ(0) < 0``).
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ from ._flow_setup import (
     Shifted,
     check_converged,
     check_operators,
+    check_plan,
     check_transfer,
     finish,
     geometry_key,
@@ -56,6 +61,7 @@ from ._flow_setup import (
     shift,
     shift_groups,
     time_order,
+    transfer_plan,
     unit_columns,
 )
 from .cache import memoized, memoized_has
@@ -98,7 +104,9 @@ class HeatFlow:
     transfer : callable or sequence of float, optional
         A transfer function φ (§2.3), as for :class:`o3dheat.HeatKernel <o3dheat.spectral.kernel.HeatKernel>`: ``exp(−(t/2) φ(W⁻¹L))``.
         φ must be bounded below on ``[0, ∞)`` (a polynomial: a positive leading coefficient), or
-        the full kernel does not exist (it amplifies the highest frequencies without bound).
+        the full kernel does not exist (it amplifies the highest frequencies without bound). Any
+        such φ is certified (the module notes), non-analytic ones such as ``√λ`` included; one
+        too rough on the mesh's spectrum to be is refused (:class:`~o3dheat.errors.ConvergenceError`).
     backend : str
         Factorization backend (:func:`o3dheat.spectral.linalg.factorize`).
     cache : bool
@@ -247,16 +255,29 @@ class HeatFlow:
         return 1.0 / self.lambda2 if self.normalize == "lambda2" else 1.0
 
     def _rates(self, times):
-        """``(taus, rates, null_rate, scale)`` for :func:`o3dheat.spectral.krylov.propagate`: ``exp(−τ
-        rates(λ))`` is the kernel at each time, λ the eigenvalues of W⁻¹L; ``scale`` converts
-        τ to the times of the rate λ (what the shift is chosen for: φ(x) ≈ x assumed)."""
+        """``(taus, rates, null_rate)`` for :func:`o3dheat.spectral.krylov.propagate`: ``exp(−τ
+        rates(λ))`` is the kernel at each time, λ the eigenvalues of W⁻¹L."""
         unit = self._unit()
         if self._phi is None:
-            return 0.5 * times * unit, None, 0.0, 1.0
+            return 0.5 * times * unit, None, 0.0
         phi = self._phi
         if self.normalize is not None:
             check_transfer(self._phi, self._ops.lam_max, unit)
-        return 0.5 * times, (lambda lam: phi(lam * unit)), float(phi(np.zeros(1))[0]), unit
+        return 0.5 * times, (lambda lam: phi(lam * unit)), float(phi(np.zeros(1))[0])
+
+    def _plans(self, taus, groups, rates, null_rate, tol, max_steps, times):
+        """A transfer function's :class:`~o3dheat.spectral._flow_setup.Plan` per group of times: its
+        shift and a priori bound on the spectrum's interval ``[λ_2, λ_max]`` of W⁻¹L (λ_2 from a
+        small eigensolve, with a margin of 1e-3 for its accuracy; λ_max by Gershgorin)."""
+        top = np.inf if self._ops.lam_max is None else self._ops.lam_max
+        try:
+            low = 0.999 * self.lambda2
+        except MeshError:  # no non-zero eigenvalue: the interval reaches the null space's
+            low = 1e-12 * (top if np.isfinite(top) else 1.0)
+        plans = [transfer_plan(lambda lam: rates(lam) - null_rate, taus[g], low, top, tol, max_steps) for g in groups]
+        for plan, g in zip(plans, groups, strict=True):
+            check_plan(plan, tol, max_steps, times[g], bounded=np.isfinite(top))
+        return plans
 
     def _basis_bytes(self):
         free = available_memory()
@@ -276,7 +297,8 @@ class HeatFlow:
         tol : float, optional
             Relative error asked, in (0, 1): ``‖Φ_t f − result‖_W <= tol ‖f − f₀‖_W`` for each
             column and time by the a posteriori estimate (``f₀``: the W-mean on each connected
-            part). Default: the HeatFlow's ``tol``.
+            part); with a transfer function, by an a priori bound, relative to ``exp(−(t/2) φ(0))
+            ‖f − f₀‖_W`` (see the module notes). Default: the HeatFlow's ``tol``.
         return_report : bool
             Also return a :class:`FlowReport`.
         max_steps : int
@@ -336,7 +358,7 @@ class HeatFlow:
         one factor per group of times (:func:`shift_groups`), the next one made on another core
         during the current group's solves."""
         c, T = F.shape[1], len(times)
-        taus, rates, null_rate, scale = self._rates(times)
+        taus, rates, null_rate = self._rates(times)
         estimate = np.zeros((c, T))
         steps = np.zeros(c, dtype=np.int64)
         zero, order, in_order = time_order(taus)
@@ -346,11 +368,16 @@ class HeatFlow:
         shifts, solves, t_fac, t_sol = [], 0, 0.0, 0.0
         backend = ""
         groups = shift_groups(taus[order])
-        gammas = [shift(scale * taus[order[g]].min(), scale * taus[order[g]].max()) for g in groups]
+        if rates is None:
+            plans = [None] * len(groups)
+            gammas = [shift(taus[order[g]].min(), taus[order[g]].max()) for g in groups]
+        else:  # a transfer function: its own shifts, and an a priori bound as the estimate
+            plans = self._plans(taus, [order[g] for g in groups], rates, null_rate, tol, max_steps, times)
+            gammas = [p.gamma for p in plans]
         F, units = unit_columns(F)
         pending = None  # the next group's factor, made on another core during this group's solves
         try:
-            for gi, (g, gamma) in enumerate(zip(groups, gammas, strict=True)):
+            for gi, (g, gamma, plan) in enumerate(zip(groups, gammas, plans, strict=True)):
                 idx = order[g]
                 t0 = time.perf_counter()
                 shifted = self._factor(gamma, pending)
@@ -358,7 +385,7 @@ class HeatFlow:
                 pending = self._next_factor(gammas, gi, shifted)
                 backend = shifted.factor.backend
                 info = self._propagate(shifted, F, taus[idx], gamma, U[:, :, g[0]:g[-1] + 1], tol, max_steps,
-                                       rates, null_rate)
+                                       rates, null_rate, None if plan is None else plan.bound)
                 t_sol += time.perf_counter() - t1
                 t_fac += t1 - t0
                 check_converged(info, tol, max_steps, times[idx], self._phi is not None)
@@ -386,14 +413,14 @@ class HeatFlow:
             return parallel.background(Shifted, self._ops, gammas[gi + 1], self.backend)
         return None
 
-    def _propagate(self, shifted, F, taus, gamma, out, tol, max_steps, rates, null_rate):
+    def _propagate(self, shifted, F, taus, gamma, out, tol, max_steps, rates, null_rate, bound=None):
         """One group's propagation into ``out`` (:func:`o3dheat.spectral.krylov.propagate`), the
         factor's solve workspaces given back after it."""
         ops = self._ops
         try:
             _, info = propagate(shifted.factor.solve, ops.W, F, taus, gamma, null=(ops.labels, ops.d), tol=tol,
                                 max_steps=max_steps, rates=rates, basis_bytes=self._basis_bytes(),
-                                null_rate=null_rate, out=out, release=shifted.factor.release)
+                                null_rate=null_rate, out=out, release=shifted.factor.release, bound=bound)
         finally:
             shifted.factor.release()  # its solve workspaces (n x columns each): memory back now
         return info

@@ -136,6 +136,7 @@ class HeatKernel:
         self.normalize = normalize
         self.transfer = transfer
         lam = np.asarray(spectrum.eigenvalues, dtype=np.float64)
+        lam = np.where(_truncation.null_eigenvalues(lam, spectrum.mass), 0.0, lam)  # the constants' 0, exactly
         if normalize == "lambda2":
             lam = lam / first_nonzero(lam)
         phi = transfer_function(transfer)
@@ -166,6 +167,8 @@ class HeatKernel:
     def _WX(self):
         """Wᵀ X = W X (W symmetric): rows give the coefficients of the canonic basis."""
         return np.asarray(self._weigh(self.spectrum.eigenvectors))
+
+    _accuracy = cached_property(_truncation.accuracy)  # what the certificates need of the computed eigenpairs
 
     def _field(self, f, name="f"):
         return checks.field(f, self.n, name)
@@ -244,9 +247,10 @@ class HeatKernel:
         t : float or (T,) array_like
             Time(s) >= 0, paper convention (``exp(-λ t / 2)``). All times are done in one batch.
         return_bound : bool
-            Also return the certificate of the truncation, :meth:`truncation_bound`: how far, at
-            most, the result is from the full kernel's ``exp(−(t/2) W⁻¹L) f``
-            (:func:`o3dheat.heat_flow <o3dheat.spectral.heatflow.heat_flow>`), in W-norm relative to ``‖f‖_W``.
+            Also return the certificate, :meth:`truncation_bound`: how far, at most, the returned
+            result is from the full kernel's ``exp(−(t/2) W⁻¹L) f`` (:func:`o3dheat.heat_flow
+            <o3dheat.spectral.heatflow.heat_flow>`), in W-norm relative to ``‖f‖_W``: the
+            truncation, the computed eigenpairs' accuracy and the rounding (never below ~n u).
 
         Returns
         -------
@@ -303,12 +307,12 @@ class HeatKernel:
             the "linear" kernel, where ``W = I``).
 
         return_bound : bool
-            Also return a rigorous bound of the truncation, per vertex and time, in the units of
-            the HKS: with ``r_k`` the largest rate and ``w_i`` a bound of ``Σ_b x_b(i)²`` over a
-            complete eigenbasis (:attr:`o3dheat.Spectrum.inverse_mass_bound`), the full kernel's
-            density HKS exceeds this one by ``0 <= h − h_k <= e^{−r_k t/2} (w_i − Σ_{b<=k} x_b(i)²)``;
-            the paper form differs by at most ``e^{−r_k t/2} sqrt(w_i − Σ x_b(i)²) sqrt(W_ii −
-            Σ (W x_b)(i)²)`` (Cauchy–Schwarz; ``Σ_b (W x_b)(i)² = W_ii``).
+            Also return a bound of how far the result is from the full kernel's, per vertex and
+            time, in the units of the HKS: the truncation (``r_k`` the largest rate, ``w_i`` a bound
+            of ``Σ_b x_b(i)²`` over a complete basis, :attr:`o3dheat.Spectrum.inverse_mass_bound`)
+            ``e^{−r_k t/2} (w_i − Σ_{b<=k} x_b(i)²)``, or for the paper form ``e^{−r_k t/2} sqrt(w_i −
+            Σ x_b(i)²) sqrt(W_ii − Σ (W x_b)(i)²)`` (Cauchy–Schwarz), plus the computed eigenpairs'
+            accuracy and the rounding (about n u times the HKS: :func:`o3dheat.spectral._truncation.hks_bound`).
 
         Returns
         -------

@@ -33,6 +33,15 @@ after at least :data:`MIN_STEPS` steps (so that an approximation still near 0 at
 before the smallest eigenvalues are found, is not taken for converged), or when its Krylov space
 is invariant (then the result is exact).
 
+For a transfer function, :mod:`o3dheat.spectral.heatflow` passes instead an a priori ``bound``
+(:func:`o3dheat.spectral._flow_setup.chebyshev_bound`): twice the tail of the Chebyshev series of
+``g_τ`` on an interval holding the spectrum of S, a rigorous bound of the error after m steps for
+every field. It is the stopping rule and the estimate then: the difference of iterates assumes a
+fast (geometric) convergence, and fell behind the error (up to 5x near tol, so that errors up to
+3.7x tol were returned) where ``g_τ`` has a singularity near the spectrum, which makes the
+convergence slow and uneven: √λ's branch point at λ = 0 (s = 1), the pole of λ/(1 + λ) and the
+branch point of log(1 + λ) at λ = −1 (s = 1/(1 − γ)).
+
 Many columns run in lockstep: one multi-column solve per step serves every column still running
 (each has its own tridiagonal and stops on its own estimate); columns that lie in the null space
 need no step.
@@ -253,7 +262,8 @@ def _difference(Y, Yold):
 def propagate(solve: Callable, W: sp.spmatrix | None, F: ArrayLike, taus: ArrayLike, gamma: float, *,
               null: tuple | None = None, tol: float = 1e-8, max_steps: int = 1000, rates: Callable | None = None,
               null_rate: float = 0.0, basis_bytes: float | None = None, min_steps: int = MIN_STEPS,
-              out: np.ndarray | None = None, release: Callable | None = None) -> tuple[np.ndarray, Propagation]:
+              out: np.ndarray | None = None, release: Callable | None = None,
+              bound: np.ndarray | None = None) -> tuple[np.ndarray, Propagation]:
     """``exp(−τ W⁻¹L) F`` at every τ, from a solver of ``W + γL`` (see the module notes).
 
     Parameters
@@ -291,6 +301,11 @@ def propagate(solve: Callable, W: sp.spmatrix | None, F: ArrayLike, taus: ArrayL
     release : callable, optional
         Called once the steps are done, before the result's memory is taken (for example
         :meth:`o3dheat.spectral.linalg.Factor.release`: the solver's workspaces).
+    bound : (T, M) float64 ndarray, optional
+        A priori error bounds (relative to ``‖f − f₀‖_W``) after ``m = 0 .. M−1`` steps at each
+        time, valid for every field (:func:`o3dheat.spectral._flow_setup.chebyshev_bound`): then a
+        column stops at the first m whose bound is ``<= tol`` at every time (or at ``M − 1``, or when
+        its Krylov space is invariant), and its estimate is that bound; ``min_steps`` is not used.
 
     Returns
     -------
@@ -314,6 +329,10 @@ def propagate(solve: Callable, W: sp.spmatrix | None, F: ArrayLike, taus: ArrayL
     """
     F, taus = _check_arguments(F, taus, gamma, tol, out)
     n, c = F.shape
+    if bound is not None:
+        bound = np.asarray(bound, dtype=np.float64)
+        if bound.ndim != 2 or bound.shape[0] != len(taus) or bound.shape[1] < 2:
+            raise MeshError(f"bound must have one row per time and a column per step count, got {bound.shape}")
     rates = _less_null_rate(rates, null_rate)
     W, null = _operator(W, null, n)
     solve = _solver(solve)
@@ -325,7 +344,7 @@ def propagate(solve: Callable, W: sp.spmatrix | None, F: ArrayLike, taus: ArrayL
     f0 = F - F1  # the null-space part, exact: exp(-τ φ(0)) f0 at every time
     # a column whose non-constant part is at rounding level of the field is constant per part
     live = b0 > 1e-14 * np.maximum(scale, 1e-300)
-    track = _Columns(np.flatnonzero(live), c, b0, gamma, taus, rates, decay, tol, min_steps, max_steps)
+    track = _Columns(np.flatnonzero(live), c, b0, gamma, taus, rates, decay, tol, min_steps, max_steps, bound)
     if not live.any():
         return _result(f0, decay, [], {}, out), Propagation(track.steps, track.estimate, track.converged)
     state = _start_state(live, F1, WF1, b0)
@@ -386,7 +405,7 @@ class _Columns:
     """Each column's tridiagonal coefficients, its last coefficient arrays, its estimate and when
     it stops (steps, converged, the final coefficients ``done_coef``)."""
 
-    def __init__(self, cols, c, b0, gamma, taus, rates, decay, tol, min_steps, max_steps):
+    def __init__(self, cols, c, b0, gamma, taus, rates, decay, tol, min_steps, max_steps, bound=None):
         self.alphas = {j: [] for j in cols}
         self.betas = {j: [] for j in cols}
         self.history = {j: [] for j in cols}  # the last coefficient arrays, newest last
@@ -396,9 +415,12 @@ class _Columns:
         self.converged = np.ones(c, dtype=bool)
         self.done_coef = {}
         self.settings = (b0, gamma, taus, rates, decay, tol, min_steps, max_steps)
+        self.bound = bound
 
     def update(self, cols, al, be):
         """One step's coefficients of the running columns ``cols``: which of them go on."""
+        if self.bound is not None:
+            return self._update_bounded(cols, al, be)
         b0, gamma, taus, rates, decay, tol, min_steps, max_steps = self.settings
         alphas, betas, history, under = self.alphas, self.betas, self.history, self.under
         estimate, converged, done_coef, steps = self.estimate, self.converged, self.done_coef, self.steps
@@ -421,6 +443,25 @@ class _Columns:
                 converged[j] = exhausted or under[j] >= 2
                 done_coef[j] = Y * decay  # exp(-τ φ(0)), 1 but for transfer functions
                 steps[j] = m
+        return go
+
+    def _update_bounded(self, cols, al, be):
+        """:meth:`update` with an a priori bound: the coefficients are needed only at the end."""
+        b0, gamma, taus, rates, decay, tol, _, max_steps = self.settings
+        bound = self.bound
+        go = np.ones(len(cols), dtype=bool)
+        for k, j in enumerate(cols):
+            self.alphas[j].append(al[k])
+            self.betas[j].append(be[k])
+            m = len(self.alphas[j])
+            est = bound[:, min(m, bound.shape[1] - 1)]
+            exhausted = be[k] <= BREAKDOWN
+            if exhausted or est.max() <= tol or m >= min(max_steps, bound.shape[1] - 1):
+                go[k] = False
+                self.converged[j] = exhausted or est.max() <= tol
+                self.estimate[j] = 0.0 if exhausted else est
+                self.done_coef[j] = _coefficients(self.alphas[j], self.betas[j], b0[j], gamma, taus, rates) * decay
+                self.steps[j] = m
         return go
 
 

@@ -416,3 +416,68 @@ def test_certificates_need_an_increasing_transfer_function():
             K.smooth(f, 0.1, return_bound=True)
         with pytest.raises(o3dheat.MeshError, match="transfer function that increases"):
             K.hks(0.1, return_bound=True)
+
+
+# -------------------------------------- issue 30: the certificates bound what is returned
+def _random_ellipsoid(n=500, seed=3):
+    """An irregular closed mesh: the convex hull of random points on a sphere (slivers, triangles of
+    very different sizes), stretched to an ellipsoid."""
+    from scipy.spatial import ConvexHull
+
+    P = np.random.default_rng(seed).standard_normal((n, 3))
+    P /= np.linalg.norm(P, axis=1, keepdims=True)
+    return P * [1.3, 1.0, 0.8], ConvexHull(P).simplices.astype(np.int64)
+
+
+_REFERENCES = {}
+
+
+def _exact(name):
+    """(V, F, W, λ, X): the complete dense generalized eigendecomposition of (L, B), its null vector
+    replaced by the exact normalised constant (eigh's own is off by 1e-13..1e-12: more than the
+    rounding to be checked)."""
+    import scipy.linalg as sla
+
+    if name not in _REFERENCES:
+        V, F = icosphere(3) if name == "sphere" else _random_ellipsoid()
+        L, B = (M.toarray() for M in o3dheat.spectral.fem.operators(V, F, "consistent")[:2])
+        lam, X = sla.eigh(L, B)
+        lam[0] = 0.0
+        X[:, 0] = 1.0 / np.sqrt(B.sum())
+        _REFERENCES[name] = V, F, B, lam, X
+    return _REFERENCES[name]
+
+
+@pytest.mark.parametrize("method", ["auto", "lanczos"])
+@pytest.mark.parametrize("name", ["sphere", "irregular"])
+def test_certificates_bound_what_is_returned_at_every_time(name, method):
+    """Issue 30: the certificates of smooth() and hks() underflowed at large t (1e-46 .. 1e-219, then
+    0) while the returned values keep their rounding (1e-14 .. 1e-12: the n-term sums, the computed
+    eigenvectors; and a constant's eigenvalue of 8e-14 made the mean drift by 1e-11 at t = 500).
+    Now the bound holds against the complete dense kernel at every time, never drops below the
+    rounding floor ~ n u, and is within 1e6 of it where the truncation has decayed."""
+    V, F, B, lam, X = _exact(name)
+    spec = o3dheat.eigensolve((V, F), k=30, method=method)
+    floor = len(V) * np.finfo(np.float64).eps / 2
+    rng = np.random.default_rng(2)
+    f = np.column_stack([V[:, 0] + 2.0, rng.standard_normal(len(V))])  # a smooth field with a mean, noise
+    t = np.array([0.0, 0.3, 1.0, 10.0, 100.0, 1e3, 1e6]) / lam[1]
+    late = t * lam[1] >= 100.0
+    for normalize, transfer in ((None, None), ("lambda2", [0.0, 1.0, 0.1])):
+        K = HeatKernel(spec, normalize=normalize, transfer=transfer)
+        unit = 1.0 / o3dheat.spectral.variants.first_nonzero(spec.eigenvalues) if normalize else 1.0
+        rates = np.polynomial.polynomial.polyval(lam * unit, transfer) if transfer else lam
+        D = np.exp(-0.5 * np.multiply.outer(rates, t))  # (n, T)
+        exact = np.einsum("ik,kt,kc->ict", X, D, X.T @ (B @ f))
+        got, bound = K.smooth(f, t, return_bound=True)
+        E = got - exact
+        err = np.sqrt(np.einsum("ict,ij,jct->ct", E, B, E)) / np.sqrt(np.einsum("ic,ij,jc->c", f, B, f))[:, None]
+        assert np.all(err <= bound), (normalize, (err / bound).max())
+        assert np.all(bound >= floor) and np.all(bound[:, late] <= 1e6 * floor), (bound.min(), bound[:, late].max())
+        for form in o3dheat.spectral.variants.HKS_FORMS:
+            h, hb = K.hks(t, form=form, return_bound=True)
+            P = X * X if form == "density" else X * (B @ X)
+            ref = P @ D
+            assert np.all(np.abs(h - ref) <= hb), (form, (np.abs(h - ref) / hb).max())
+            assert np.all(hb >= 0.5 * floor * np.abs(ref)), form
+            assert np.all(hb[:, late] <= 1e6 * floor * np.abs(ref[:, late])), form
