@@ -59,18 +59,18 @@ def table(grid):
     tr, ex = runs["truncated", grid], runs["exact", grid]
     n_tr = tr.critical_counts.sum(axis=1)
     n_ex = ex.critical_counts.sum(axis=1)
-    print(f"{grid:>5} grid    ε∞ truncated  exact   critical points truncated"
-          "  exact")
+    lines = [f"{grid:>5} grid    ε∞ truncated  exact   critical points truncated  exact"]
     for i, ti in enumerate(tr.scales):
-        print(f"  t = {ti:8.3g}  {tr.errors[i]:10.3f}  {ex.errors[i]:6.3f}"
-              f"  {n_tr[i]:24d}  {n_ex[i]:5d}")
+        lines.append(f"  t = {ti:8.3g}  {tr.errors[i]:10.3f}  {ex.errors[i]:6.3f}"
+                     f"  {n_tr[i]:24d}  {n_ex[i]:5d}")
+    return "\n".join(lines)
 
 
-table("paper")
+print(table("paper"))
 
 # %%
 # and on the log grid:
-table("log")
+print(table("log"))
 
 # %%
 # On the paper's grid the truncated field hardly changes (it is already the band-limited
