@@ -34,10 +34,19 @@ against ``track_critical_points(surface, F, t)`` (which computes them too), best
 and the ratio (the target: at most 3x); then the first read of ``Tracks.persistence`` (the
 diagrams the tracking did not need, computed then) and the tracking's peak memory per n T.
 
+**End to end** (``--end-to-end``, its own table instead of the others): one field from the arrays,
+``persistence((V, F), f)`` (the checks of the arrays, the search for duplicate vertices, the
+Surface and the persistence) against gudhi's simplex tree and persistence, single-threaded
+(``OMP_NUM_THREADS``, ``NUMBA_NUM_THREADS`` and ``o3dheat.parallel.threads`` at 1), measured
+interleaved (each round times gudhi once, then o3dheat three times; best over ``--repeat``
+rounds), so that a busy machine slows both alike; the 1-minute load average is printed with
+each row. gudhi's edge list is made outside its timing, as in the main table (in gudhi's favour).
+
     .venv/bin/python scripts/bench_topology.py                        # 100k and 1M vertices
     .venv/bin/python scripts/bench_topology.py --sizes 100000 --repeat 3
     .venv/bin/python scripts/bench_topology.py --sizes 10000000 --meshes torus --repeat 1  # slow
     .venv/bin/python scripts/bench_topology.py --only-tracking                  # the tracking table alone
+    .venv/bin/python scripts/bench_topology.py --end-to-end --sizes 200000,1000000 --meshes bunny,torus
 
 Needs gudhi (``pip install -e .[dev]`` or ``.[bench]``). Prints Markdown tables.
 """
@@ -49,6 +58,10 @@ import gc
 import os
 import subprocess
 import sys
+
+if "--end-to-end" in sys.argv:  # single-threaded, before numpy and numba are imported
+    for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ[_var] = "1"
 import tempfile
 import time
 import tracemalloc
@@ -169,6 +182,49 @@ def tracking(n, repeat, memory=True):
           f"{t_cp:.3f} | {t_tr:.3f} | {t_tr / t_cp:.2f}x | {t_p:.3f} | {peak:.1f} |", flush=True)
 
 
+def end_to_end(meshes, sizes, repeat, gudhi_max):
+    """The end-to-end table (see the module docstring): one row per mesh, size and field."""
+    from o3dheat.parallel import threads
+
+    print("| vertices | mesh | field | pairs | o3dheat end to end s | µs per vertex | of which Surface s | "
+          "of which persistence s | gudhi s | gudhi / o3dheat | diagrams agree | load (1 min) |")
+    print("|" + "---|" * 12)
+    for name in meshes:
+        for n in sizes:
+            V, F = {"torus": torus, "bunny": bunny}[name](n)
+            gudhi = len(V) <= gudhi_max
+            if gudhi:
+                E, used = gudhi_edges(F)
+            for label, f in fields(V).items():
+                with threads(1):
+                    d = o3dheat.persistence((V, F), f)  # compiled loops loaded
+                    t_o = t_g = t_s = t_p = np.inf
+                    for _ in range(repeat):  # interleaved: gudhi once, then o3dheat three times
+                        if gudhi:
+                            t0 = time.perf_counter()
+                            g = gudhi_persistence(F, E, used, f)
+                            t_g = min(t_g, time.perf_counter() - t0)
+                        for _ in range(3):
+                            t0 = time.perf_counter()
+                            d = o3dheat.persistence((V, F), f)
+                            t1 = time.perf_counter()
+                            S = Surface((V, F))
+                            t2 = time.perf_counter()
+                            o3dheat.persistence(S, f)
+                            t3 = time.perf_counter()
+                            t_o, t_s, t_p = min(t_o, t1 - t0), min(t_s, t2 - t1), min(t_p, t3 - t2)
+                if gudhi:
+                    ours = [finite(d.intervals(0)), finite(d.intervals(1)[:, ::-1])]
+                    agree = "yes" if all(np.array_equal(a, finite(b)) for a, b in zip(ours, g, strict=True)) else "NO"
+                    cmp = f"{t_g:.2f} | {t_g / t_o:.1f}x | {agree}"
+                else:
+                    cmp = "- | - | -"
+                print(f"| {len(V):,} | {name} | {label} | {len(d):,} | {t_o:.3f} | {t_o / len(V) * 1e6:.2f} | "
+                      f"{t_s:.3f} | {t_p:.3f} | {cmp} | {os.getloadavg()[0]:.1f} |", flush=True)
+                S = None
+            gc.collect()
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="100000,1000000", help="comma-separated vertex counts (10000000: slow)")
@@ -180,7 +236,12 @@ def main(argv=None):
     ap.add_argument("--no-first-call", action="store_true", help="skip the compile / cache-load table")
     ap.add_argument("--tracking-size", type=int, default=200_000, help="vertices of the tracking case (0: skip)")
     ap.add_argument("--only-tracking", action="store_true", help="the tracking table alone")
+    ap.add_argument("--end-to-end", action="store_true",
+                    help="the end-to-end table alone: persistence((V, F), f) against gudhi, single-threaded, interleaved")
     args = ap.parse_args(argv)
+    if args.end_to_end:
+        end_to_end(args.meshes.split(","), [int(s) for s in args.sizes.split(",")], args.repeat, args.gudhi_max)
+        return 0
     if args.only_tracking:
         tracking(args.tracking_size, args.repeat, not args.no_memory)
         return 0

@@ -1,9 +1,10 @@
-"""The topology's compiled loops (numba) and their callers: :func:`kernel`, :func:`edges`, :func:`classified`.
+"""The topology's compiled loops (numba) and their callers: :func:`kernel`, :func:`classified`.
 
-:func:`kernel` gives the compiled version of a loop by name (the surface's tables, the lower links,
-the persistence sweeps, the tracking's climb), :func:`edges` the edge tables of faces,
-:func:`classified` the classification of a field on a Surface; :func:`warn_constant` is the
-warning the critical points and persistence share.
+:func:`kernel` gives the compiled version of a loop by name (the checks of (V, F) arrays, the
+surface's adjacency in link order, its edges, the lower links, the persistence sweeps, the
+tracking's climb; the callers give them arrays numpy allocates: numba's own would get small pages,
+slow to touch at this size), :func:`classified` the classification of a field on a Surface;
+:func:`warn_constant` is the warning the critical points and persistence share.
 
 The loops are plain Python functions compiled on first use (:func:`o3dheat._jit.compiled`: numba,
 imported only then, cached once per installation, beside this module). Vertex ids are int32 inside,
@@ -21,26 +22,65 @@ from o3dheat._jit import compiled
 log = logging.getLogger("o3dheat")
 
 #: the loops of Surface, critical_points and persistence (those warm_up loads); tracking adds ``climb``
-LOOPS = ("sorted_half_edges", "number_edges", "fans", "classify", "arcs", "sweeps")
+LOOPS = ("checked_copy", "duplicates", "links", "classify", "pack_keys", "settle_runs", "arcs", "sweeps")
 
 
 def kernel(name):
-    """The compiled version of the loop ``name`` of this module (one of :data:`LOOPS`, or ``climb``)."""
+    """The compiled version of the loop ``name`` of this module (one of :data:`LOOPS`, ``edge_tables`` or ``climb``)."""
     return compiled(globals()[name])
 
 
-def edges(F, n):
-    """The edge tables of faces ``F`` on ``n`` vertices (:func:`sorted_half_edges`, then
-    :func:`number_edges`): ``E``, ``count``, ``face_edges``, ``he``, ``first``, ``ptr``, ``adj``."""
-    start, hi, he, ne = kernel("sorted_half_edges")(F, n)
-    E, count, face_edges, first, ptr, adj = kernel("number_edges")(start, hi, he, ne, n)
-    return E, count, face_edges, he, first, ptr, adj
-
-
 def classified(S, f, pointers=False):
-    """(kind, mult, crit, low, high) of :func:`classify` for the field ``f`` on the Surface ``S``."""
+    """(kind, mult, crit, low, high) of :func:`classify` for the field ``f`` on the Surface ``S``
+    (``high`` has an entry more, for :func:`arcs`; both empty unless ``pointers``)."""
     ptr, adj = S.adjacency
-    return kernel("classify")(np.ascontiguousarray(f), ptr, adj, S.F, S.boundary, pointers)
+    n = S.n
+    kind, mult, crit = np.zeros(n, np.int8), np.zeros(n, np.int32), np.empty(n, np.int64)
+    low, high = (np.empty(n, np.int32), np.empty(n + 1, np.int32)) if pointers else (mult[:0], mult[:0])
+    nc = kernel("classify")(np.ascontiguousarray(f), ptr, adj, S.boundary, kind, mult, crit, low, high)
+    return kind, mult, crit[:nc], low, high
+
+
+def pack_keys(key, ib, words):
+    """``words[i]``: the leading ``64 - ib`` order-preserving bits of ``key[i]``, then ``i``."""
+    top = np.uint64(1) << np.uint64(63)
+    zero = np.uint64(0)
+    sh = np.uint64(ib)
+    bits = key.view(np.uint64)
+    for i in range(key.shape[0]):
+        u = bits[i]
+        u = zero if u == top else u  # -0.0 as 0.0
+        u = ~u if u & top else u | top  # negative: reversed; positive: above them
+        words[i] = ((u >> sh) << sh) | np.uint64(i)
+
+
+def settle_runs(words, ib, key, second, idx):
+    """``idx`` from the sorted ``words`` of :func:`pack_keys`: their indices, each run of equal
+    leading bits sorted by ``(key, second)`` (an insertion sort of the run, when it is out of
+    order: a near-tie, or ties whose ``second`` is not ascending). False, with ``idx`` unfinished,
+    when such a run is longer than 32 (many ties: the caller sorts otherwise)."""
+    N = words.shape[0]
+    low = (np.uint64(1) << np.uint64(ib)) - np.uint64(1)
+    sh = np.uint64(ib)
+    for i in range(N):
+        idx[i] = np.int64(words[i] & low)
+    i = 0
+    while i < N:
+        j = i + 1
+        pre = words[i] >> sh
+        while j < N and (words[j] >> sh) == pre:
+            j += 1
+        for k in range(i + 1, j):
+            x = idx[k]
+            m = k - 1
+            while m >= i and (key[idx[m]] > key[x] or (key[idx[m]] == key[x] and second[idx[m]] > second[x])):
+                if j - i > 32:
+                    return False
+                idx[m + 1] = idx[m]
+                m -= 1
+            idx[m + 1] = x
+        i = j
+    return True
 
 
 def warn_constant(f, S):
@@ -51,207 +91,269 @@ def warn_constant(f, S):
         log.warning("the field is constant: its critical points only reflect the vertex order")
 
 
-def sorted_half_edges(F, n):
-    """The half-edges of the faces in buckets by their lower vertex (a counting sort), each bucket
-    sorted by the higher vertex (small: a vertex's edges).
-
-    Returns ``start`` (n + 1,) int64 (the bucket of vertex ``v``: ``start[v]:start[v + 1]``),
-    ``hi`` (3m,) int32 the higher vertex and ``he`` (3m,) int32 the half-edge (``3 t + s``, from
-    ``F[t, s]`` to ``F[t, s + 1]``) at each place, and ``ne`` the number of unique edges.
-    """
-    m = F.shape[0]
-
-    def sift(hi, he, i0, root, end):  # restore the max-heap hi[i0:i0 + end] below root
-        while 2 * root + 1 < end:
-            c = 2 * root + 1
-            if c + 1 < end and hi[i0 + c + 1] > hi[i0 + c]:
-                c += 1
-            if hi[i0 + root] >= hi[i0 + c]:
-                return
-            hi[i0 + root], hi[i0 + c] = hi[i0 + c], hi[i0 + root]
-            he[i0 + root], he[i0 + c] = he[i0 + c], he[i0 + root]
-            root = c
-
-    start = np.zeros(n + 1, np.int64)
-    for t in range(m):
+def edge_tables(F, ptr, adj):
+    """The edges from the adjacency: ``E`` (e, 2) int64 (``(lo, hi)``, lexicographic), faces per
+    edge ``count`` (e,) int32 and ``face_edges`` (3m,) int64 (the edge of ``(F[t, s], F[t, s + 1])``
+    at ``3 t + s``)."""
+    n = ptr.shape[0] - 1
+    first = np.zeros(n + 1, np.int64)  # the edges (v, u > v): first[v]:first[v + 1]
+    for v in range(n):
+        c = 0
+        for k in range(ptr[v], ptr[v + 1]):
+            c += adj[k] > v
+        first[v + 1] = first[v] + c
+    hi = np.empty(first[n], np.int32)
+    for v in range(n):
+        e = first[v]
+        for k in range(ptr[v], ptr[v + 1]):
+            if adj[k] > v:
+                hi[e] = adj[k]
+                e += 1
+        hi[first[v]:e].sort()
+    E = np.empty((first[n], 2), np.int64)
+    for v in range(n):
+        for e in range(first[v], first[v + 1]):
+            E[e, 0], E[e, 1] = v, hi[e]
+    count = np.zeros(first[n], np.int32)
+    face_edges = np.empty(3 * F.shape[0], np.int64)
+    for t in range(F.shape[0]):
         for s in range(3):
             a, b = F[t, s], F[t, (s + 1) % 3]
-            start[min(a, b) + 1] += 1
-    for v in range(n):
-        start[v + 1] += start[v]
-    fill = start[:n].copy()
-    hi = np.empty(3 * m, np.int32)
-    he = np.empty(3 * m, np.int32)
+            e = first[min(a, b)]
+            while hi[e] != max(a, b):
+                e += 1
+            face_edges[3 * t + s] = e
+            count[e] += 1
+    return E, count, face_edges
+
+
+def checked_copy(V, F, lo, hi, Fc, used):
+    """The checks of :func:`o3dheat.geometry.mesh.as_arrays` on float64 ``V`` (n, 3) and int64 ``F``
+    (m, 3), one pass over each: False if a coordinate is not finite, an index out of range or the
+    extent out of ``[lo, hi]``. Fills ``Fc`` (the copy of ``F``) and ``used`` (referenced vertices)."""
+    n, m = V.shape[0], F.shape[0]
     for t in range(m):
         for s in range(3):
-            a, b = F[t, s], F[t, (s + 1) % 3]
-            lo = min(a, b)
-            p = fill[lo]
-            fill[lo] = p + 1
-            hi[p] = max(a, b)
-            he[p] = 3 * t + s
-    ne = 0
+            x = F[t, s]
+            if x < 0 or x >= n:
+                return False
+            Fc[t, s] = x
+            used[x] = True
+    a0, a1, a2 = V[0, 0], V[0, 1], V[0, 2]
+    b0, b1, b2 = a0, a1, a2
+    z = 0.0
     for v in range(n):
-        i0, i1 = start[v], start[v + 1]
-        if i1 - i0 <= 16:  # insertion sort: the usual bucket has about six half-edges
-            for i in range(i0 + 1, i1):
-                x, y = hi[i], he[i]
-                j = i - 1
-                while j >= i0 and hi[j] > x:
-                    hi[j + 1] = hi[j]
-                    he[j + 1] = he[j]
-                    j -= 1
-                hi[j + 1] = x
-                he[j + 1] = y
-        else:  # a vertex of high degree: heapsort, O(d log d) (the order of equal hi is free)
-            for root in range((i1 - i0) // 2 - 1, -1, -1):
-                sift(hi, he, i0, root, i1 - i0)
-            for end in range(i1 - i0 - 1, 0, -1):
-                hi[i0], hi[i0 + end] = hi[i0 + end], hi[i0]
-                he[i0], he[i0 + end] = he[i0 + end], he[i0]
-                sift(hi, he, i0, 0, end)
-        for i in range(i0, i1):
-            if i == i0 or hi[i] != hi[i - 1]:
-                ne += 1
-    return start, hi, he, ne
+        x, y, w = V[v, 0], V[v, 1], V[v, 2]
+        z += x * 0.0 + y * 0.0 + w * 0.0  # NaN once anything is not finite
+        a0, b0 = min(a0, x), max(b0, x)
+        a1, b1 = min(a1, y), max(b1, y)
+        a2, b2 = min(a2, w), max(b2, w)
+    extent = max(b0 - a0, b1 - a1, b2 - a2)
+    return z == 0.0 and not (extent > hi or 0 < extent < lo)
 
 
-def number_edges(start, hi, he, ne, n):
-    """The edge tables from :func:`sorted_half_edges`: unique edges in ``(lo, hi)`` order and the
-    vertex adjacency.
-
-    Returns ``E`` (e, 2) int64, faces per edge ``count`` (e,) int32, ``face_edges`` (3m,) int64
-    (edge of each half-edge), ``first`` (e,) int32 the position in ``he`` (the half-edges in edge
-    order) of each edge's first one, and the vertex adjacency: ``ptr`` (n + 1,) int64, ``adj``
-    (2e,) int32.
-    """
-    E = np.empty((ne, 2), np.int64)
-    count = np.zeros(ne, np.int32)
-    first = np.empty(ne, np.int32)
-    face_edges = np.empty(he.shape[0], np.int64)
-    deg = np.zeros(n + 1, np.int64)
-    k = -1
-    for v in range(n):
-        for i in range(start[v], start[v + 1]):
-            if i == start[v] or hi[i] != hi[i - 1]:
-                k += 1
-                E[k, 0] = v
-                E[k, 1] = hi[i]
-                first[k] = i
-                deg[v + 1] += 1
-                deg[hi[i] + 1] += 1
-            count[k] += 1
-            face_edges[he[i]] = k
-    for v in range(n):
-        deg[v + 1] += deg[v]
-    ptr = deg
-    fill = ptr[:n].copy()
-    adj = np.empty(2 * ne, np.int32)
-    for k in range(ne):
-        a, b = E[k, 0], E[k, 1]
-        adj[fill[a]] = b
-        fill[a] += 1
-        adj[fill[b]] = a
-        fill[b] += 1
-    return E, count, face_edges, first, ptr, adj
-
-
-def fans(F, E, count, he, first, n):
-    """Number of vertices whose faces form more than one fan (0 for a manifold).
-
-    Union–find over the corners (corner ``3 t + s`` is vertex ``F[t, s]`` in face t): across each
-    edge with two faces, the corners at each of its ends are joined. A vertex is manifold when its
-    corners form one class.
-    """
-    m = F.shape[0]
-    uf = np.arange(3 * m, dtype=np.int32)
-    for k in range(E.shape[0]):
-        if count[k] != 2:
+def duplicates(V, used, table):
+    """Whether two vertices that ``used`` marks have exactly the same coordinates (-0.0 equal to
+    0.0): open addressing in ``table`` (-1: empty; a power of two, at least twice the vertices)."""
+    mask = np.uint64(table.shape[0] - 1)
+    c1, c2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
+    s21, s43, s30, s27, s31 = np.uint64(21), np.uint64(43), np.uint64(30), np.uint64(27), np.uint64(31)
+    coords = np.empty(3, np.float64)
+    words = coords.view(np.uint64)
+    for v in range(V.shape[0]):
+        if not used[v]:
             continue
-        t1, t2 = he[first[k]] // 3, he[first[k] + 1] // 3
-        for e in range(2):
-            x = E[k, e]
-            c1 = 3 * t1 + (0 if F[t1, 0] == x else (1 if F[t1, 1] == x else 2))
-            c2 = 3 * t2 + (0 if F[t2, 0] == x else (1 if F[t2, 1] == x else 2))
-            while uf[c1] != c1:  # find with path halving
-                uf[c1] = uf[uf[c1]]
-                c1 = uf[c1]
-            while uf[c2] != c2:
-                uf[c2] = uf[uf[c2]]
-                c2 = uf[c2]
-            if c1 != c2:
-                uf[max(c1, c2)] = min(c1, c2)
-    nfans = np.zeros(n, np.int32)
-    for c in range(3 * m):
-        if uf[c] == c:
-            nfans[F[c // 3, c % 3]] += 1
-    bad = 0
+        for c in range(3):
+            coords[c] = V[v, c] + 0.0  # -0.0 hashes as 0.0
+        x = words[0] ^ ((words[1] << s21) | (words[1] >> s43)) ^ ((words[2] << s43) | (words[2] >> s21))
+        x = (x ^ (x >> s30)) * c1  # splitmix64's finalizer
+        x = (x ^ (x >> s27)) * c2
+        p = np.int64((x ^ (x >> s31)) & mask)
+        while True:  # exact comparisons
+            j = table[p]
+            if j < 0:
+                table[p] = v
+                break
+            if V[j, 0] == coords[0] and V[j, 1] == coords[1] and V[j, 2] == coords[2]:
+                return True
+            p = np.int64((np.uint64(p) + np.uint64(1)) & mask)
+    return False
+
+
+def links(F, n, start, link, ptr, adj, boundary, first):
+    """The vertex adjacency of a surface in link order, with its checks, in O(m).
+
+    The corners are bucketed by vertex (a counting sort in ``start`` (n + 2,), zeros); each corner
+    of ``v`` in face ``(v, a, b)`` is an edge ``(a, b)`` of the link of ``v`` (in ``link`` (6m,)).
+    Per vertex, the ends of its link edges are grouped by neighbour (``first`` (n,), -1 on entry
+    and exit: a neighbour's first end): a group's size is the number of faces on the edge to that
+    neighbour (1: a boundary edge; more than 2: non-manifold); the two link edges meeting at a
+    neighbour of a group of 2 are joined,
+    and the link is walked from an end (a boundary vertex: a path) or from anywhere (a cycle). A
+    vertex whose walk leaves link edges unvisited has several fans.
+
+    Fills ``ptr`` (n + 1,), ``adj`` (3m + n,) (the neighbours of ``v`` are ``adj[ptr[v]:ptr[v +
+    1]]`` in the order of its link: consecutive ones span a face with ``v``, and so do the last
+    and the first when ``v`` is not on the boundary) and ``boundary`` (n,). Returns ``status``
+    (0; 1: an index out of range; 2: a face repeats a vertex: nothing else is done then), the
+    length of ``adj`` used, the number of edges, of edges with more than two faces and of vertices
+    with several fans (when either is not 0, ``adj`` is incomplete).
+    """
+    m = F.shape[0]
+    for t in range(m):
+        a, b, c = F[t, 0], F[t, 1], F[t, 2]
+        if min(a, b, c) < 0 or max(a, b, c) >= n:
+            return 1, 0, 0, 0, 0
+        if a == b or b == c or a == c:
+            return 2, 0, 0, 0, 0
+        start[a + 2] += 1
+        start[b + 2] += 1
+        start[c + 2] += 1
+    maxd = 0
     for v in range(n):
-        if nfans[v] > 1:
-            bad += 1
-    return bad
+        maxd = max(maxd, start[v + 2])
+        start[v + 2] += start[v + 1]
+    for t in range(m):  # corner p of v: link[2p], link[2p + 1]; start[v + 1] ends at v's bucket's end
+        for s in range(3):
+            v = F[t, s]
+            p = start[v + 1]
+            start[v + 1] = p + 1
+            link[2 * p] = F[t, (s + 1) % 3]
+            link[2 * p + 1] = F[t, (s + 2) % 3]
+    partner = np.empty(2 * maxd, np.int32)  # the other end of a neighbour's two link edges; -1: none
+    occ = np.empty(2 * maxd, np.int32)  # at a neighbour's first end: its number of link edges
+    seen = np.zeros(maxd, np.bool_)
+    ptr[0] = 0
+    q, ne, bad_edges, bad_fans = 0, 0, 0, 0
+    succ = np.empty(maxd, np.int32)  # the corner after each, around the vertex
+    for v in range(n):
+        p0, d = start[v], start[v + 1] - start[v]
+        w = 2 * d
+        if d == 0:
+            ptr[v + 1] = q
+            continue
+        if d <= 16:  # the usual vertex, consistently oriented and closed: each b is one a
+            ok = True
+            for i in range(d):
+                b = link[2 * (p0 + i) + 1]
+                c, nx = 0, 0
+                for j in range(d):
+                    eq = link[2 * (p0 + j)] == b
+                    c += eq
+                    nx = j if eq else nx
+                ok &= c == 1
+                succ[i] = nx
+            if ok:  # one cycle through all the corners: the link, in order
+                i, up = 0, 0
+                for k in range(d):
+                    u = link[2 * (p0 + i)]
+                    adj[q + k] = u
+                    up += u > v
+                    i = succ[i]
+                    if i == 0 and k < d - 1:
+                        ok = False
+                        break
+                if ok:
+                    ne += up
+                    q += d
+                    ptr[v + 1] = q
+                    continue
+        for i in range(w):  # otherwise: group the ends by neighbour (first: a neighbour's first end, or -1)
+            u = link[2 * p0 + i]
+            f0 = first[u]
+            partner[i] = -1
+            if f0 < 0:
+                first[u] = i
+                occ[i] = 1
+            else:
+                occ[f0] += 1
+                if occ[f0] == 2:
+                    partner[f0] = i
+                    partner[i] = f0
+        end = -1
+        for i in range(w):
+            u = link[2 * p0 + i]
+            if first[u] == i:
+                ne += u > v
+                if occ[i] == 1:
+                    end = i
+                elif occ[i] > 2:
+                    bad_edges += u > v
+        for i in range(w):
+            first[link[2 * p0 + i]] = -1
+        boundary[v] = end >= 0
+        cur = max(end, 0)
+        for e in range(d):
+            seen[e] = False
+        adj[q] = link[2 * p0 + cur]
+        q += 1
+        nseen = 0
+        while True:  # walk the link: along an edge, then across the neighbour to its other edge
+            seen[cur >> 1] = True
+            nseen += 1
+            t = cur ^ 1
+            nxt = partner[t]
+            if nxt >= 0 and seen[nxt >> 1]:  # back at the start: a cycle
+                break
+            adj[q] = link[2 * p0 + t]
+            q += 1
+            if nxt < 0:  # the other end of a path
+                break
+            cur = nxt
+        bad_fans += nseen < d
+        ptr[v + 1] = q
+    return 0, q, ne, bad_edges, bad_fans
 
 
-def classify(f, ptr, adj, F, boundary, pointers):
-    """Banchoff's classification in the order (f, index).
+def classify(f, ptr, adj, boundary, kind, mult, crit, low, high):
+    """Banchoff's classification in the order (f, index), from the adjacency in link order
+    (:func:`links`): the lower link's arcs are the runs of lower neighbours around the vertex.
 
-    Returns ``kind`` (n,) int8 (0 regular or unreferenced, 1 minimum, 2 saddle, 3 maximum),
-    ``mult`` (n,) int32 (saddle multiplicity, else 0), ``crit`` the critical vertices (ascending)
-    and, when ``pointers``, ``low`` and ``high`` (n,) int32: a lower and an upper neighbour (the
-    last listed; -1: none). Written without branches on the values (selects instead), which noisy
-    fields would mispredict.
+    Fills ``kind`` (n,) int8 (zeros on entry; 0 regular or unreferenced, 1 minimum, 2 saddle, 3
+    maximum), ``mult`` (n,) int32 (zeros on entry; saddle multiplicity), ``crit`` (n,) int64 the
+    critical vertices (ascending; returns their number) and, when they have n entries (none:
+    not asked for), ``low`` and ``high``: a lower and an upper neighbour of each referenced vertex
+    (the last listed; -1: none). Written without branches on the values (selects instead), which
+    noisy fields would mispredict.
     """
     n = f.shape[0]
-    nlow = np.zeros(n, np.int32)
-    low = np.full(n if pointers else 0, -1, np.int32)
-    high = np.full(n if pointers else 0, -1, np.int32)
+    pointers = low.shape[0] >= n
+    nc = 0
     for v in range(n):
+        p0, p1 = ptr[v], ptr[v + 1]
+        if p0 == p1:
+            continue
         fv = f[v]
-        c = 0
+        u = adj[p1 - 1]
+        fu = f[u]
+        prev = ((fu < fv) | ((fu == fv) & (u < v))) & (not boundary[v])  # a path starts afresh
+        c, runs = 0, 0
         lo, hi = -1, -1
-        for k in range(ptr[v], ptr[v + 1]):
+        for k in range(p0, p1):
             u = adj[k]
             fu = f[u]
             below = (fu < fv) | ((fu == fv) & (u < v))
             c += below
+            runs += below > prev
+            prev = below
             lo = u if below else lo
             hi = hi if below else u
-        nlow[v] = c
         if pointers:
             low[v] = lo
             high[v] = hi
-    le = np.zeros(n, np.int32)  # edges of the lower link: the faces whose highest vertex is v
-    for t in range(F.shape[0]):
-        a, b, c = F[t, 0], F[t, 1], F[t, 2]
-        fa, fb, fc = f[a], f[b], f[c]
-        top = a + np.int64((fb > fa) | ((fb == fa) & (b > a))) * (b - a)
-        ftop = max(fa, fb)
-        le[top + np.int64((fc > ftop) | ((fc == ftop) & (c > top))) * (c - top)] += 1
-    kind = np.zeros(n, np.int8)
-    mult = np.zeros(n, np.int32)
-    nc = 0
-    for v in range(n):
-        deg = ptr[v + 1] - ptr[v]
-        if deg == 0:
-            continue
-        if nlow[v] == 0:
+        if c == 0:
             kind[v] = 1
-        elif nlow[v] == deg and not boundary[v]:
+        elif c == p1 - p0 and not boundary[v]:
             kind[v] = 3
-        elif nlow[v] - le[v] >= 2:  # the lower link has nlow - le arcs
+        elif runs >= 2:
             kind[v] = 2
-            mult[v] = nlow[v] - le[v] - 1
+            mult[v] = runs - 1
+        crit[nc] = v
         nc += kind[v] != 0
-    crit = np.empty(nc, np.int64)
-    nc = 0
-    for v in range(n):
-        if kind[v] != 0:
-            crit[nc] = v
-            nc += 1
-    return kind, mult, crit, low, high
+    return nc
 
 
-def arcs(f, ptr, adj, boundary, kind, low, high, crit):
+def arcs(f, ptr, adj, boundary, kind, mult, uf0, uf1, crit):
     """The saddles' links in the lower and upper forests, as sortable keys.
 
     ``crit`` lists the critical vertices in increasing (f, index): position ``i`` in it is the
@@ -260,10 +362,12 @@ def arcs(f, ptr, adj, boundary, kind, low, high, crit):
     so all its lower neighbours are connected already), and likewise of ``high`` for superlevel
     sets, where every boundary vertex joins an apex ``n`` above every value (id ``len(crit)``, the
     boundary coned to one point). These links form two forests whose roots are the minima and
-    saddles (lower) and the maxima, saddles and apex (upper).
+    saddles (lower) and the maxima, saddles and apex (upper): ``uf0`` (n,) holds ``low`` and
+    ``uf1`` (n + 1,) ``high`` on entry (:func:`classify`'s), the forests after.
 
-    For each saddle, in vertex order (its neighbours are near it in memory), the roots of its lower
-    and upper neighbours are found (with path compression) and listed once each as keys
+    For each saddle, in vertex order (its neighbours are near it in memory), the roots of the
+    first neighbour of each run of lower (upper) neighbours around it (a run is connected below
+    (above) it already) are found (with path compression) and listed once each as keys
     ``(saddle id << shift) | root id``: sorted, they give each saddle's roots in sweep order.
     """
     n = f.shape[0]
@@ -290,15 +394,13 @@ def arcs(f, ptr, adj, boundary, kind, low, high, crit):
         keys[end] = key
         return end + 1
 
-    uf0 = np.empty(n, np.int32)  # >= 0: the parent vertex; < 0: a root, its id -(uf + 1)
-    uf1 = np.empty(n + 1, np.int32)
     cap0, cap1 = 0, 0
     for v in range(n):
-        uf0[v] = low[v]
-        uf1[v] = apex if boundary[v] else high[v]
-        if kind[v] == 2:
-            cap0 += ptr[v + 1] - ptr[v]
-            cap1 += ptr[v + 1] - ptr[v] + 1
+        if boundary[v]:
+            uf1[v] = apex
+        if kind[v] == 2:  # mult + 1 lower runs; as many upper ones, one more on the boundary, and the apex
+            cap0 += mult[v] + 1
+            cap1 += mult[v] + 3
     uf1[apex] = -(nc + 1)
     for i in range(nc):
         v = crit[i]
@@ -315,13 +417,22 @@ def arcs(f, ptr, adj, boundary, kind, low, high, crit):
         hi_s = np.int64(-uf0[s] - 1) << shift
         j0, j1 = k0, k1
         fs = f[s]
-        for k in range(ptr[s], ptr[s + 1]):
+        p0, p1 = ptr[s], ptr[s + 1]
+        u = adj[p0 if boundary[s] else p1 - 1]
+        fu = f[u]
+        prev = (fu < fs) | ((fu == fs) & (u < s))
+        if boundary[s]:  # a path: its first neighbour starts a run
+            prev = not prev
+        for k in range(p0, p1):  # the first neighbour of each run of lower (upper) ones
             u = adj[k]
             fu = f[u]
-            if (fu < fs) | ((fu == fs) & (u < s)):
-                k0 = push(keys0, j0, k0, hi_s | find(uf0, u))
-            else:
-                k1 = push(keys1, j1, k1, hi_s | find(uf1, u))
+            below = (fu < fs) | ((fu == fs) & (u < s))
+            if below != prev:
+                if below:
+                    k0 = push(keys0, j0, k0, hi_s | find(uf0, u))
+                else:
+                    k1 = push(keys1, j1, k1, hi_s | find(uf1, u))
+            prev = below
         if boundary[s]:
             k1 = push(keys1, j1, k1, hi_s | nc)
     return keys0[:k0], keys1[:k1], shift

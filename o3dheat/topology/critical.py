@@ -210,7 +210,7 @@ def warm_up() -> None:
 
     m = o3d.geometry.TriangleMesh.create_sphere(1.0, 6)
     V, F = np.asarray(m.vertices), np.asarray(m.triangles, dtype=np.int64)
-    S = Surface.from_faces(len(V), F, V)
+    S = Surface((V, F))  # the checks of (V, F) arrays are compiled loops too
     f = V[:, 2] + 0.1 * V[:, 0]
     critical_points(S, f)
     persistence(S, f)

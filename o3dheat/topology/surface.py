@@ -18,10 +18,13 @@ Notes
 
 **How it scales.** The loops over vertices, edges and faces are compiled (numba, ``nogil``) and
 cached beside their module (``o3dheat.topology._loops``), so only the first call of an
-installation compiles them (a few seconds). A :class:`Surface` holds the mesh's tables, vertex
-adjacency included, built once in O(m) (a counting sort of the half-edges, a union-find over the
-corners for the fans): about 0.2 µs per vertex. At most 2**31 − 2 vertices (vertex ids are int32
-inside).
+installation compiles them (a few seconds). A :class:`Surface` holds the mesh's vertex adjacency
+in link order (each vertex's neighbours in order around it), built once in O(m): the corners
+bucketed by vertex (a counting sort), then each vertex's link walked, which checks its edges (at
+most two faces) and its fans (one) too; from ``(V, F)`` arrays, their checks and the search for
+duplicate vertices (a hash table of the coordinates) are one compiled pass each. About 0.1–0.2 µs
+per vertex from the arrays, single-threaded. The edges (:attr:`Surface.E`, ...) are made on first
+use. At most 2**31 − 2 vertices (vertex ids are int32 inside).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from o3dheat import checks
 from o3dheat.errors import MeshError
 from o3dheat.geometry import as_arrays, note_repair
 from o3dheat.geometry._tables import degenerate, unique_rows, weld_map
+from o3dheat.geometry.mesh import EXTENT_RANGE
 from o3dheat.typing import FieldLike, MeshLike
 
 from . import _loops
@@ -62,7 +66,8 @@ class Surface:
     F : (m, 3) int64 ndarray
         The faces used (degenerate and duplicate faces dropped).
     E : (e, 2) int64 ndarray
-        Unique edges, ``E[:, 0] < E[:, 1]``, in lexicographic order.
+        Unique edges, ``E[:, 0] < E[:, 1]``, in lexicographic order (made on first use, as the two
+        below: critical points and persistence do not need them).
     boundary_edge : (e,) bool ndarray
     face_edges : (m, 3) int64 ndarray
         Edge index of the edge ``(F[t, s], F[t, s + 1])`` of each face.
@@ -84,11 +89,12 @@ class Surface:
 
     Notes
     -----
-    Built in O(m) by compiled loops (see the module docstring): about 0.2 s from the faces at 1M
-    vertices (checking the coordinates for duplicates comes on top when a mesh is given). It holds
-    about 190 bytes per vertex of a closed mesh (faces, edges, the edges of each face, vertex
-    adjacency, ...); its construction peaks at about 220 bytes per vertex from the faces, 300
-    from ``(V, F)`` (copies of the input and the welding check), beyond the input.
+    Built in O(m) by compiled loops (see the module docstring): about 0.15 s from ``(V, F)`` arrays
+    at 1M vertices, single-threaded, their checks and the search for duplicate vertices included.
+    It holds about 90 bytes per vertex of a closed mesh (faces, vertex adjacency, ...; the edge
+    tables add about 100 once used); its construction from ``(V, F)`` peaks at about 170 bytes per
+    vertex (copies of the input, the corners bucketed by vertex, the duplicates' hash table),
+    beyond the input.
 
     Examples
     --------
@@ -99,11 +105,13 @@ class Surface:
     """
 
     def __init__(self, mesh: MeshLike | Surface, weld: bool = True) -> None:
-        V, F = as_arrays(mesh)
+        V, F, dup = _plain(mesh)
+        if V is None:
+            V, F = as_arrays(mesh)
         self.V = V
         self.representative = None
         given = (V, F)  # what repairs are noted against (once per mesh, with prepare's: note_repair)
-        if weld:
+        if weld and dup is not False:
             rep = weld_map(V, F)
             welded = int(np.sum(rep != np.arange(len(V))))
             if welded:
@@ -145,56 +153,78 @@ class Surface:
         F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
         if len(F) == 0:
             raise MeshError("the mesh has no faces")
-        if F.min() < 0 or F.max() >= n:
-            raise MeshError(f"face indices out of range [0, {n - 1}]")
         self._build(int(n), F, (F,))
         return self
 
     def _build(self, n: int, F: np.ndarray, given: tuple) -> None:
         if n >= 2**31 - 1:
             raise MeshError(f"{n} vertices: topology handles at most 2**31 - 2 vertices")
-        bad = degenerate(F)
-        if bad.any():
-            note_repair(given, "degenerate", "dropping %d degenerate faces (a vertex index repeated)", int(bad.sum()))
-            F = F[~bad]
-        if len(F) == 0:
-            raise MeshError("no face is left once the degenerate ones are dropped")
-        if 3 * len(F) >= 2**31:
-            raise MeshError(f"{len(F)} faces: topology handles at most {(2**31 - 1) // 3} faces")
         F = np.ascontiguousarray(F, dtype=np.int64)
-        edges = _loops.edges(F, n)
-        if np.any(edges[1] > 2):  # duplicate faces are one cause: drop them, then look again
+        links = _links
+        tables = links(F, n) if 3 * len(F) < 2**31 else (2,)  # too many: refused once the degenerate are dropped
+        if tables[0] == 1:
+            raise MeshError(f"face indices out of range [0, {n - 1}]")
+        if tables[0] == 2:
+            bad = degenerate(F)
+            if bad.any():
+                note_repair(given, "degenerate", "dropping %d degenerate faces (a vertex index repeated)",
+                            int(bad.sum()))
+                F = np.ascontiguousarray(F[~bad])
+            if len(F) == 0:
+                raise MeshError("no face is left once the degenerate ones are dropped")
+            if 3 * len(F) >= 2**31:
+                raise MeshError(f"{len(F)} faces: topology handles at most {(2**31 - 1) // 3} faces")
+            tables = links(F, n)
+        if tables[5]:  # duplicate faces are one cause: drop them, then look again
             _, first = unique_rows(np.sort(F, axis=1), return_index=True)
             if len(first) < len(F):
                 note_repair(given, "duplicate", "dropping %d duplicate faces", len(F) - len(first))
                 F = np.ascontiguousarray(F[np.sort(first)])
-                edges = _loops.edges(F, n)
-        E, counts, face_edges, he, first, ptr, adj = edges
-        if np.any(counts > 2):
-            raise MeshError(f"{int(np.sum(counts > 2))} edges have more than two faces (non-manifold): "
+                tables = links(F, n)
+        _, ptr, adj, boundary, ne, bad_edges, bad_fans = tables
+        if bad_edges:
+            raise MeshError(f"{bad_edges} edges have more than two faces (non-manifold): "
                             "topology needs a 2-manifold: repair the mesh first with o3dheat.repair(mesh) "
                             "(or `o3dheat repair IN OUT`), which splits such edges")
-        m = len(F)
-        self.n = n
-        self.F = F
-        self.E = E
-        self.boundary_edge = counts == 1
-        self.face_edges = face_edges.reshape(m, 3)
-        self.degree = np.diff(ptr)
-        self.used = self.degree > 0
-        self.boundary = np.zeros(n, bool)
-        self.boundary[E[self.boundary_edge].reshape(-1)] = True
-        self.euler_characteristic = int(self.used.sum() - len(E) + m)
-        self._ptr, self._adj = ptr, adj  # the neighbours of vertex v: adj[ptr[v]:ptr[v + 1]]
-        bad = _loops.kernel("fans")(F, E, counts, he, first, n)
-        if bad:
-            raise MeshError(f"{bad} vertices are non-manifold (their faces form several fans): topology "
+        if bad_fans:
+            raise MeshError(f"{bad_fans} vertices are non-manifold (their faces form several fans): topology "
                             "needs a 2-manifold: repair the mesh first with o3dheat.repair(mesh) (or "
                             "`o3dheat repair IN OUT`), which gives each fan its own vertex")
+        self.n = n
+        self.F = F
+        self.degree = np.diff(ptr)
+        self.used = self.degree > 0
+        self.boundary = boundary
+        self.euler_characteristic = int(np.count_nonzero(self.used) - ne + len(F))
+        self._ptr, self._adj = ptr, adj  # the neighbours of vertex v: adj[ptr[v]:ptr[v + 1]], in link order
+
+    def _edge_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        tables = self.__dict__.get("_edges")
+        if tables is None:  # on first use (level sets, tracking): persistence does not need them
+            E, counts, face_edges = _loops.kernel("edge_tables")(self.F, self._ptr, self._adj)
+            tables = self._edges = (E, counts == 1, face_edges.reshape(-1, 3))
+        return tables
+
+    @property
+    def E(self) -> np.ndarray:
+        """(e, 2) int64: the unique edges, ``E[:, 0] < E[:, 1]``, in lexicographic order (made on first use)."""
+        return self._edge_tables()[0]
+
+    @property
+    def boundary_edge(self) -> np.ndarray:
+        """(e,) bool: the edges of :attr:`E` with one face (made on first use)."""
+        return self._edge_tables()[1]
+
+    @property
+    def face_edges(self) -> np.ndarray:
+        """(m, 3) int64: the edge (in :attr:`E`) of the edge ``(F[t, s], F[t, s + 1])`` of each face (made on first use)."""
+        return self._edge_tables()[2]
 
     @property
     def adjacency(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(ptr, adj)``: the neighbours of vertex ``v`` are ``adj[ptr[v]:ptr[v + 1]]`` (CSR).
+        """``(ptr, adj)``: the neighbours of vertex ``v`` are ``adj[ptr[v]:ptr[v + 1]]`` (CSR), in
+        the order of its link: consecutive ones span a face with ``v``, and so do the last and the
+        first when ``v`` is not on the boundary (its lower link's arcs are runs of this list).
 
         Examples
         --------
@@ -209,7 +239,7 @@ class Surface:
     @property
     def components(self) -> int:
         """Number of connected components (of the referenced vertices)."""
-        g = sp.coo_matrix((np.ones(len(self.E)), (self.E[:, 0], self.E[:, 1])), shape=(self.n, self.n))
+        g = sp.csr_matrix((np.ones(len(self._adj), np.int8), self._adj, self._ptr), shape=(self.n, self.n))
         _, lab = connected_components(g, directed=False)
         return int(len(np.unique(lab[self.used])))
 
@@ -240,3 +270,35 @@ class Surface:
             dev = np.bincount(rep, weights=arr - arr[rep], minlength=self.n)
             arr = arr[rep] + (dev / np.bincount(rep, minlength=self.n).clip(1))[rep]
         return arr
+
+
+def _plain(mesh):
+    """``(V, F, dup)`` as :func:`~o3dheat.geometry.mesh.as_arrays` makes them (copies, checked) for
+    a tuple of two numpy arrays of the usual types, in one compiled pass over each
+    (``_loops.checked_copy``), and whether two referenced vertices have exactly the same coordinates
+    (``dup``: whether welding has anything to do; a hash table, ``_loops.duplicates``);
+    ``(None, None, None)`` otherwise, and for anything as_arrays would refuse (it says why)."""
+    if not (type(mesh) is tuple and len(mesh) == 2 and all(type(a) is np.ndarray for a in mesh)):
+        return None, None, None
+    V, F = mesh
+    if not (V.dtype == np.float64 and V.ndim == 2 and V.shape[1] == 3 and len(V) and F.ndim == 2
+            and F.shape[1] == 3 and len(F) and F.dtype.kind in "iu" and F.dtype.itemsize <= 8):
+        return None, None, None
+    V, n = np.array(V, dtype=np.float64, copy=True), len(V)
+    Fc, used = np.empty((len(F), 3), np.int64), np.zeros(n, np.bool_)
+    if not _loops.kernel("checked_copy")(V, np.ascontiguousarray(F, dtype=np.int64), *EXTENT_RANGE, Fc, used):
+        return None, None, None
+    size = 1 << max(int(2 * n - 1).bit_length(), 1)  # a power of two, at least 2n
+    return V, Fc, _loops.kernel("duplicates")(V, used, np.full(size, -1, np.int32))
+
+
+def _links(F, n):
+    """``_loops.links`` (the adjacency in link order and its checks) on arrays numpy allocates:
+    ``status``, ``ptr``, ``adj``, ``boundary``, edges, edges with more than two faces, vertices
+    with several fans."""
+    m = len(F)
+    start, link = np.zeros(n + 2, np.int64), np.empty(6 * m, np.int32)
+    ptr, adj, boundary = np.empty(n + 1, np.int64), np.empty(3 * m + n, np.int32), np.zeros(n, np.bool_)
+    status, q, ne, bad_edges, bad_fans = _loops.kernel("links")(F, n, start, link, ptr, adj, boundary,
+                                                                 np.full(n, -1, np.int32))
+    return status, ptr, adj[:q], boundary, ne, bad_edges, bad_fans

@@ -148,8 +148,12 @@ def test_warm_up_loads_every_compiled_loop():
     code = ("import o3dheat.topology.critical as T, o3dheat._jit as J; T.warm_up(); "
             "print(sorted(name for mod, name in J._COMPILED if mod == 'o3dheat.topology._loops'))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip().splitlines()[-1] == str(sorted(["arcs", "classify", "fans", "number_edges", "sorted_half_edges",
-                                                       "sweeps"]))
+    assert out.strip().splitlines()[-1] == str(sorted(["arcs", "checked_copy", "classify", "duplicates",
+                                                       "links", "pack_keys", "settle_runs", "sweeps"]))
+    from o3dheat.topology import _loops
+
+    assert sorted(_loops.LOOPS) == sorted(["arcs", "checked_copy", "classify", "duplicates", "links", "pack_keys",
+                                           "settle_runs", "sweeps"])
 
 
 def test_critical_points_have_a_length_the_number_of_critical_vertices():

@@ -149,3 +149,73 @@ def test_generic_fields_follow_a_renumbering():
         d, dp = o3dheat.persistence((V, F), f), o3dheat.persistence((V[perm], inv[F]), f[perm])
         assert sorted(map(tuple, d.pairs.tolist())) == sorted(map(tuple, perm[dp.pairs].tolist()))
         assert sorted(d.essential.tolist()) == sorted(perm[dp.essential].tolist())
+
+
+def _shuffled(V, F, seed):
+    """The same surface with its vertices renumbered, its faces reordered and about half of them
+    turned over (orientations no longer consistent: the adjacency's general path)."""
+    rng = np.random.default_rng(seed)
+    perm = rng.permutation(len(V))  # new vertex i is old vertex perm[i]
+    inv = np.argsort(perm)
+    F = inv[F][rng.permutation(len(F))]
+    flip = rng.random(len(F)) < 0.5
+    F[flip] = F[flip][:, ::-1]
+    return V[perm], F, perm
+
+
+@pytest.mark.parametrize("name", list(RANDOM_MESHES))
+def test_persistence_equals_previous_implementation_on_renumbered_and_flipped_meshes(name):
+    """Issue 31 (the adjacency in link order, the runs of lower neighbours, the packed sorts): pair
+    for pair the previous implementation's diagram (topology_cases.reference_persistence) and
+    gudhi's, with the faces in any order and orientation."""
+    V0, F0 = RANDOM_MESHES[name]
+    for seed in range(3):
+        V, F, _ = _shuffled(V0, F0, seed) if seed else (V0, F0, None)
+        S = Surface((V, F))
+        for label, f in fields(len(V), seed):
+            d = o3dheat.persistence(S, f)
+            pairs, dim, ess, edim = reference_persistence(S, f)
+            np.testing.assert_array_equal(d.pairs, pairs, err_msg=label)
+            np.testing.assert_array_equal(d.dimension, dim)
+            np.testing.assert_array_equal(d.essential, ess)
+            np.testing.assert_array_equal(d.essential_dimension, edim)
+            g = gudhi_diagrams(F, f)
+            assert np.array_equal(finite(d.intervals(0)), finite(g[0])), label
+            assert np.array_equal(finite(d.intervals(1)[:, ::-1]), finite(g[1])), label
+
+
+def test_persistence_of_noisy_fields_on_a_larger_sphere_equals_gudhi_and_the_previous_implementation():
+    """Many critical points (most vertices), ties, and the same surface turned over in parts."""
+    gudhi = pytest.importorskip("gudhi")
+    V0, F0 = icosphere(4)
+    rng = np.random.default_rng(12)
+    for seed, (V, F) in enumerate([(V0, F0), _shuffled(V0, F0, 5)[:2]]):
+        for f in (V[:, 2] + 0.3 * rng.standard_normal(len(V)), np.round(rng.standard_normal(len(V)), 1)):
+            d = o3dheat.persistence((V, F), f)
+            pairs, dim, ess, edim = reference_persistence(Surface((V, F)), f)
+            np.testing.assert_array_equal(d.pairs, pairs, err_msg=str(seed))
+            np.testing.assert_array_equal(d.essential, ess)
+            np.testing.assert_array_equal(d.essential_dimension, edim)
+            g = gudhi_diagrams(F, f)
+            for k in (0, 1):  # the same finite pairs (bottleneck distance 0, up to gudhi's rounding)
+                ours = finite(d.intervals(k) if k == 0 else d.intervals(1)[:, ::-1])
+                assert np.array_equal(ours, finite(g[k]))
+                assert gudhi.bottleneck_distance(ours, finite(g[k])) < 1e-300
+            inf = tuple(int(np.sum(~np.isfinite(x[:, 1]))) if len(x) else 0 for x in g)
+            assert inf == tuple(np.bincount(d.essential_dimension, minlength=3))
+
+
+def test_packed_order_is_lexicographic():
+    """The order of persistence (leading bits and index in one word, numpy's vectorised sort,
+    near-ties settled) is np.lexsort((second, key)), -0.0 equal to 0.0, for keys with ties,
+    near-ties and extremes."""
+    from o3dheat.topology.diagrams import _order
+
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        N = int(rng.integers(1, 2000))
+        key = [rng.standard_normal(N), np.round(rng.standard_normal(N), 1), 1 + rng.integers(0, 5, N) * 1e-15,
+               np.where(rng.random(N) < 0.5, 0.0, -0.0), 1 + 1e-12 * rng.standard_normal(N),
+               rng.integers(-3, 3, N) * rng.choice([1.0, 1e-300, 1e300, 5e307], N)][trial % 6]
+        second = rng.permutation(3 * N)[:N] if trial % 2 else np.arange(N)
+        np.testing.assert_array_equal(_order(key, second), np.lexsort((second, key)), err_msg=str(trial))

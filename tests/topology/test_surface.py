@@ -161,3 +161,49 @@ def test_hypothesis_fan_check_on_random_face_subsets():
 def test_too_many_vertices_are_refused():
     with pytest.raises(o3dheat.MeshError, match="at most"):
         Surface.from_faces(2**31, np.array([[0, 1, 2]]))
+
+
+@pytest.mark.parametrize("name", list(RANDOM_MESHES))
+def test_adjacency_is_in_link_order(name):
+    """Issue 31: each vertex's neighbours go round its link: consecutive ones span a face with it,
+    and so do the last and the first unless it is on the boundary; faces turned over too."""
+    V, F = RANDOM_MESHES[name]
+    rng = np.random.default_rng(1)
+    for flip in (np.zeros(len(F), bool), rng.random(len(F)) < 0.5):
+        F2 = F.copy()
+        F2[flip] = F2[flip][:, ::-1]
+        S = Surface((V, F2))
+        faces = {frozenset(t) for t in F2.tolist()}
+        ptr, adj = S.adjacency
+        for v in np.flatnonzero(S.used):
+            nb = adj[ptr[v]:ptr[v + 1]].tolist()
+            spans = list(zip(nb, nb[1:] + nb[:1], strict=True))[: len(nb) - 1 if S.boundary[v] else len(nb)]
+            assert all(frozenset((v, a, b)) in faces for a, b in spans), (name, v)
+            assert len(set(nb)) == len(nb)
+
+
+def test_arrays_and_other_inputs_give_the_same_surface(caplog):
+    """The compiled checks of (V, F) arrays (one pass, a hash table for duplicate vertices) give
+    what as_arrays and weld_map give: the same errors, the same welding, the same tables."""
+    V, F = icosphere(2)
+    for bad, msg in [(np.where(np.arange(len(V))[:, None] == 3, np.nan, V), "NaN or infinite"),
+                     (V * 1e101, "the mesh spans"), (V * 1e-101, "the mesh spans")]:
+        with pytest.raises(o3dheat.MeshError, match=msg):
+            Surface((bad, F))
+    for badF in (np.where(F == 5, len(V), F), np.where(F == 5, -1, F)):
+        with pytest.raises(o3dheat.MeshError, match="face indices out of range"):
+            Surface((V, badF))
+    # a split copy of every vertex of one face, with -0.0 for 0.0: welded, as by weld_map
+    V2 = np.concatenate([V, V[F[0]] * np.where(V[F[0]] == 0, -1.0, 1.0)])
+    F2 = F.copy()
+    F2[0] = len(V) + np.arange(3)
+    with caplog.at_level(logging.WARNING, logger="o3dheat"):
+        S = Surface((V2, F2))
+    assert "welded 3 duplicate" in caplog.text
+    np.testing.assert_array_equal(S.representative, np.concatenate([np.arange(len(V)), F[0]]))
+    for mesh in [(V2, F2.astype(np.int32)), [V2, F2], (V2.astype(np.float32).astype(float), F2)]:
+        S2 = Surface(mesh)
+        np.testing.assert_array_equal(S2.representative, S.representative)
+        np.testing.assert_array_equal(S2.F, S.F)
+        np.testing.assert_array_equal(S2.adjacency[1], S.adjacency[1])
+    assert Surface((V, F)).representative is None
