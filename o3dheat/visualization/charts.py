@@ -306,7 +306,7 @@ def study(table: pd.DataFrame, descriptor: str = "hks_density", metric: str = "r
     fig = Figure(figsize=(3.6 * len(kinds) + 0.4, 3.8), dpi=100, layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(kinds), sharey=True))
     # the paper's kernel black, the others in matplotlib's cycle, in the order of variants.VARIANTS
-    colors = {v: "black" if i == 0 else f"C{i - 1}" for i, v in enumerate(VARIANTS)}
+    colors = {v: _kernel_color(v) for v in VARIANTS}
     means = t.groupby(["kind", "kernel", "scale"])[metric].mean()
     bars = bool((t["scale"] == 0).all())
     positive = means[means > 0]

@@ -156,7 +156,7 @@ def view(mesh: MeshLike, field: FieldLike | str | None = None, t: TimesLike | No
     >>> v.html().startswith("<!DOCTYPE html>")
     True
     """
-    unknown = set(recipe) - {f.name for f in Recipe.__dataclass_fields__.values()} | (set(recipe) & {"source"})
+    unknown = set(recipe) - set(Recipe.__dataclass_fields__)
     if unknown:
         raise MeshError(f"unknown option(s) of view: {', '.join(sorted(unknown))}")
     r = Recipe(method=method, up=up, max_faces=max_faces, column=column, source=source, **recipe)

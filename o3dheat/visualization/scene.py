@@ -329,11 +329,9 @@ def _cleaned(V, F, given, notes):
         report = check_mesh((V, F))
         why = (f"{report.non_manifold_edges} non-manifold edges and {report.non_manifold_vertices} non-manifold "
                "vertices split (o3dheat.repair)")
-        fixed = []
-        for name, vals in given:
-            V2, F2, vals = _layout.repaired(V, F, np.zeros(len(V)) if vals is None else vals, why, "the scene is made")
-            fixed.append((name, None if name == "height" and vals is not None and not vals.any() else vals))
-        V, F, given = V2, F2, fixed
+        # one repair for every field: the vertex each copy comes from, then each field indexed by it
+        V, F, source = _layout.repaired(V, F, np.arange(len(V)), why, "the scene is made")
+        given = [(name, None if vals is None else vals[source]) for name, vals in given]
         notes.append(why)
     p = prepare((V, F))
     if len(p.V) < len(V):
