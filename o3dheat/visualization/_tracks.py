@@ -96,7 +96,7 @@ def tracks(mesh: MeshLike, tracks: Tracks, f: FieldLike | None = None, longest: 
     r = _render.renderer(renderer)  # here: its warning names the caller of tracks
     parts = _panels.vertex_parts(len(V), F)
     kinds = np.asarray(tr.kind)[chosen]
-    segments, colors, jumps, jump = _paths(tr, P, chosen, kinds, V, F, frame)
+    segments, colors, jumps, jump = _paths(tr, P, chosen, kinds, V, F)
     panel, counts = _ends_panel(tr, P, chosen, kinds, V, F, g, parts, None if f is None else cmap)
     w, h = _layout.picture_size(frame, size)
     fig = Figure(figsize=(w + (1.1 if f is not None else 0.2), h + 0.9 + (0.35 if title else 0.0)), dpi=100,
@@ -130,14 +130,22 @@ def _first_scale(f, n):
     return _layout.field_values(G[:, 0] if G.ndim == 2 else G, n)
 
 
-def _paths(tr, P, chosen, kinds, V, F, frame):
+def longest_move(V, F):
+    """The longest move of a track between two scales that is drawn, in the mesh's units: ``JUMP``
+    of the diagonal, or 2.5 mean edge lengths if longer (a move along an edge or two lies on the
+    surface; a longer straight line would cut across it). The static figures and the page use it."""
+    F = np.asarray(F)
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]])
+    edge = float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean()) if len(E) else 0.0
+    return max(JUMP * float(np.linalg.norm(np.ptp(V, axis=0))), 2.5 * edge)
+
+
+def _paths(tr, P, chosen, kinds, V, F):
     """``(segments, colors, jumps, jump)``: the tracks' paths, consecutive living positions that
     differ and are at most ``jump`` apart, in their kinds' colours, and how many moves were longer."""
     from matplotlib.colors import to_rgb
 
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]])
-    edge = float(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1).mean()) if len(E) else 0.0
-    jump = max(JUMP * frame.diagonal, 2.5 * edge)  # a move along an edge or two lies on the surface
+    jump = longest_move(V, F)
     jumps = 0
     segs, cols = [], []
     for i, kind in zip(chosen, kinds, strict=True):

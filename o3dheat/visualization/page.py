@@ -73,6 +73,7 @@ import numpy as np
 from o3dheat.errors import MeshError
 
 from ._render import UP
+from ._tracks import longest_move
 from .scene import Scene
 
 __all__ = ["page_html"]
@@ -135,6 +136,7 @@ def page_html(scene: Scene) -> str:
         "up": scene.up, "view": _view(scene.view), "levels": _levels(scene.levels), "cmap": str(scene.cmap),
         "lut": _lut(scene.cmap), "radius": float(np.linalg.norm(V - center, axis=1).max()),
         "diagonal": float(np.linalg.norm(np.ptp(V, axis=0))), "closed": _closed(F, n), "area": _area(V, F),
+        "jump": longest_move(V, F),
         "fields": fields,
         "layout": pack.layout,
     }

@@ -464,3 +464,19 @@ def test_the_request_guard_sees_requests(browser, tmp_path):
         assert set(page.outside()) >= {"http://example.invalid/a.png", "https://example.invalid/b.json"}
     finally:
         page.close()
+
+
+def test_the_page_draws_no_track_move_the_figures_leave_out():
+    """A track's move between two scales longer than the figures' limit (5% of the diagonal, or 2.5
+    edges) would cut across the surface: the page gets the same limit (one rule, _tracks.longest_move)."""
+    import json
+    import re
+
+    from o3dheat.visualization._tracks import longest_move
+
+    V, F = torus()
+    f = V[:, 0]
+    cp = tuple(o3dheat.critical_points((V, F), f * s) for s in (1.0, 0.5))
+    html = page_html(Scene(V, F, (ScaleField("x", np.c_[f, 0.5 * f], np.array([0.0, 1.0]), cp),)))
+    meta = json.loads(re.search(r'id="o3dheat-meta">(.*?)</script>', html, re.S).group(1))
+    assert meta["jump"] == pytest.approx(longest_move(V, F)) and meta["jump"] > 0

@@ -374,7 +374,9 @@
       if (tr.lifetime[p] < state.life) continue; // NaN and infinite lifetimes are always kept
       for (let j = 0; j + 1 < T; j++) {
         const u = V[p * T + j], w = V[p * T + j + 1];
-        if (u >= 0 && w >= 0 && u !== w) segments.push([at(u), at(w), tr.kind[p]]);
+        if (u < 0 || w < 0 || u === w) continue;
+        const a = at(u), b = at(w);
+        if (a.distanceTo(b) <= meta.jump) segments.push([a, b, tr.kind[p]]); // longer: it would cut across the surface
       }
     }
     const nv = 2 * SIDES * segments.length, P = new Float32Array(3 * nv), N = new Float32Array(3 * nv);
