@@ -19,6 +19,7 @@ Moving functions between samplings: :mod:`o3dheat.geometry.interpolation`; point
 from __future__ import annotations
 
 import logging
+import threading
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -40,6 +41,10 @@ __all__ = ["Resampled", "warm_up", "decimate", "remesh", "anisotropic", "jitter"
            "MIN_FACES", "REMESH_MAX_FACES"]
 
 log = logging.getLogger("o3dheat")
+#: fast-simplification keeps the mesh being decimated in module-level C++ state between its calls
+#: (load, simplify, return): two threads decimating at once read each other's mesh (an IndexError
+#: or a wrong mesh). Every call into it holds this lock.
+_FAST_SIMPLIFICATION = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -132,7 +137,8 @@ def _clean(V, F, vertex_map=None):
     return V[used], remap[F], vertex_map
 
 
-def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = None) -> Resampled:
+def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = None, *,
+             vertex_map: bool = True) -> Resampled:
     """Quadric decimation (fast-simplification): fewer vertices where the surface is flat.
 
     Parameters
@@ -144,11 +150,21 @@ def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = 
     target_faces : int, optional
         Instead of ``reduction``: the number of faces to keep (>= :data:`MIN_FACES`; no-op when
         the mesh has fewer).
+    vertex_map : bool
+        Compute :attr:`Resampled.vertex_map` (source vertex -> the decimated vertex it collapsed
+        into) by replaying the collapses; False skips the replay (about half the time at a million
+        faces) and leaves it None. Both give the same faces; the replay recomputes the vertex
+        positions, which then differ slightly.
 
     Returns
     -------
     Resampled
-        With ``vertex_map``: source vertex -> the decimated vertex it collapsed into.
+        With ``vertex_map`` (unless not asked for).
+
+    Notes
+    -----
+    Thread-safe: fast-simplification's state is module-wide, so concurrent calls (threads, a Dask
+    worker's tasks) take turns.
 
     Raises
     ------
@@ -182,11 +198,16 @@ def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = 
                         f"{MIN_FACES}: use a reduction of at most {1 - MIN_FACES / len(F):.4g}, or target_faces")
     if reduction == 0:
         return Resampled(V, F, "decimate", params, np.arange(len(V)))
-    _, _, collapses = fast_simplification.simplify(V, F.astype(np.int32), target_reduction=float(reduction),
-                                                   return_collapses=True)
-    V2, F2, vmap = fast_simplification.replay_simplification(V, F.astype(np.int32), collapses)
+    checks.flag(vertex_map, "vertex_map")
+    with _FAST_SIMPLIFICATION:
+        V2, F2, *collapses = fast_simplification.simplify(V, F.astype(np.int32), target_reduction=float(reduction),
+                                                          return_collapses=vertex_map)
+        vmap = None
+        if vertex_map:
+            V2, F2, vmap = fast_simplification.replay_simplification(V, F.astype(np.int32), collapses[0])
     _check_result(V2, F2, "decimate", params)  # (fast-simplification may remove more than asked)
-    V2, F2, vmap = _clean(np.asarray(V2, np.float64), np.asarray(F2, np.int64), np.asarray(vmap, np.int64))
+    V2, F2, vmap = _clean(np.asarray(V2, np.float64), np.asarray(F2, np.int64),
+                          None if vmap is None else np.asarray(vmap, np.int64))
     _check_result(V2, F2, "decimate", params)
     return Resampled(V2, F2, "decimate", params, vmap)
 

@@ -463,3 +463,36 @@ def test_a_repair_is_reported_once_per_mesh(caplog):
     with caplog.at_level(logging.WARNING, logger="o3dheat"):
         o3dheat.critical_points((V * 2, F2), V[:, 0])  # another geometry: its own report
     assert caplog.text.count("dropping 3 duplicate faces") == 1
+
+
+def test_non_manifold_vertex_mask_is_the_fan_count():
+    """The O(m) mask (one label per vertex compared with each corner's) equals the definition: a
+    vertex whose corners fall into more than one edge-connected fan. Random face soups glued at
+    shared vertices (bowties, fans split in two) and closed meshes."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    from o3dheat.geometry._tables import non_manifold_vertex_mask
+
+    def fans_by_definition(F, n):
+        m = len(F)
+        vert = F.reshape(-1)
+        corners = {}
+        for c, v in enumerate(vert):
+            corners.setdefault(int(v), []).append(c)
+        # corners c, d at one vertex are adjacent when their faces share an edge through it
+        edges = [(c, d) for cs in corners.values() for i, c in enumerate(cs) for d in cs[i + 1:]
+                 if len((set(F[c // 3]) & set(F[d // 3])) - {vert[c]}) > 0]
+        a, b = (np.array(x, dtype=np.int64) for x in zip(*edges, strict=True)) if edges else (np.zeros(0, int),) * 2
+        _, lab = connected_components(sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(3 * m, 3 * m)), directed=False)
+        return np.array([len({int(lab[c]) for c in corners.get(v, [])}) > 1 for v in range(n)])
+
+    rng = np.random.default_rng(0)
+    for trial in range(40):
+        n = int(rng.integers(4, 12))
+        F = np.array([rng.choice(n, 3, replace=False) for _ in range(int(rng.integers(1, 14)))], dtype=np.int64)
+        assert np.array_equal(non_manifold_vertex_mask(F, n), fans_by_definition(F, n)), (trial, F.tolist())
+    V, F = icosphere(2)
+    assert not non_manifold_vertex_mask(F, len(V)).any()
+    bowtie = np.array([[0, 1, 2], [0, 3, 4]])
+    assert non_manifold_vertex_mask(bowtie, 5).tolist() == [True, False, False, False, False]
