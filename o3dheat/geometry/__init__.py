@@ -9,7 +9,7 @@ Entry points: :func:`~o3dheat.geometry.mesh.as_arrays`, :func:`~o3dheat.geometry
 :func:`~o3dheat.geometry.points.reconstruct` (:mod:`o3dheat.geometry.points`),
 :func:`~o3dheat.geometry.up.up_axis` (:mod:`o3dheat.geometry.up`: which axis is up)."""
 
-from .interpolation import nearest, transfer
+from .interpolation import TransferMap, nearest, transfer, transfer_map
 from .mesh import MeshReport, as_arrays, check_mesh, check_points, face_areas, mesh_of, note_repair
 from .points import point_arrays, reconstruct
 from .repairs import Repaired, repair
@@ -23,5 +23,5 @@ from . import interpolation, mesh, points, repairs, sampling, up, welding  # noq
 
 __all__ = ["MeshReport", "Prepared", "Repaired", "Resampled", "as_arrays", "check_mesh", "check_points", "face_areas",
            "mesh_of", "note_repair", "prepare", "repair", "KINDS", "anisotropic", "decimate", "jitter", "remesh",
-           "resample", "subdivide", "warm_up", "transfer", "nearest", "point_arrays", "reconstruct",
+           "resample", "subdivide", "warm_up", "transfer", "transfer_map", "TransferMap", "nearest", "point_arrays", "reconstruct",
            "interpolation", "mesh", "points", "repairs", "sampling", "welding", "up", "up_axis", "height"]

@@ -1,9 +1,11 @@
 """Functions moved between samplings of a surface: :func:`transfer` (the PL function of one
-sampling at the vertices of another, barycentric at the closest surface point) and
+sampling at the vertices of another, barycentric at the closest surface point), its geometry alone
+as a :class:`TransferMap` (:func:`transfer_map`: made once, applied to many fields) and
 :func:`nearest` (the value of the nearest sample)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -20,7 +22,7 @@ if TYPE_CHECKING:  # o3dheat.typing imports Open3D (1.5 s), which arrays never n
 
     from o3dheat.typing import MeshLike
 
-__all__ = ["transfer", "nearest"]
+__all__ = ["transfer", "transfer_map", "TransferMap", "nearest"]
 
 
 def _surface_of(source):
@@ -29,13 +31,46 @@ def _surface_of(source):
     return as_arrays(source)
 
 
+@dataclass(frozen=True, eq=False)
+class TransferMap:
+    """Where each target point lies on the source surface: a triangle's three vertices and the
+    barycentric weights of the closest point in it. Calling it moves a field (:func:`transfer_map`).
+
+    Attributes
+    ----------
+    corners : (p, 3) int64 ndarray
+        The source vertices of the triangle closest to each target point.
+    weights : (p, 3) float64 ndarray
+        Their barycentric weights (>= 0, summing to 1) at the closest point.
+    sources : int
+        The number of source vertices (the rows a field must have).
+
+    Examples
+    --------
+    See :func:`transfer_map`.
+    """
+
+    corners: np.ndarray
+    weights: np.ndarray
+    sources: int
+
+    def __call__(self, values: ArrayLike) -> np.ndarray:
+        """The PL function of ``values`` (one row per source vertex) at the target points:
+        (p,) for (r,) values, (p, c) for (r, c)."""
+        vals = checks.field(values, self.sources, "values (one row per source vertex)")
+        if vals.ndim == 1:
+            return np.einsum("pk,pk->p", self.weights, vals[self.corners])
+        return np.einsum("pk,pkc->pc", self.weights, vals[self.corners])
+
+
 def transfer(values: ArrayLike, source: MeshLike, target: MeshLike | np.ndarray) -> np.ndarray:
     """Evaluate the PL function given at the vertices of ``source`` at the vertices of ``target``.
 
     Each target point is projected on the closest point of the source surface (Open3D's
     RaycastingScene) and gets the barycentric interpolation of that triangle's vertex values:
     exact for functions linear on the source triangles (coordinates, for example), and the
-    identity when both samplings are the same mesh.
+    identity when both samplings are the same mesh. Several fields between the same two samplings:
+    :func:`transfer_map` once, then call it on each.
 
     Parameters
     ----------
@@ -59,6 +94,41 @@ def transfer(values: ArrayLike, source: MeshLike, target: MeshLike | np.ndarray)
     >>> transfer(V[:, 0], (V, F), np.array([[0.25, 0.25, 1.0]])).round(6).tolist()
     [0.25]
     """
+    V, _ = _surface_of(source)
+    checks.field(values, len(V), "values (one row per source vertex)")  # before the geometry's work
+    return transfer_map(source, target)(values)
+
+
+def transfer_map(source: MeshLike, target: MeshLike | np.ndarray) -> TransferMap:
+    """The geometry of :func:`transfer` alone: the closest source triangle of each target point and
+    its barycentric weights, to move any number of fields afterwards (each a gather, no search).
+
+    Parameters
+    ----------
+    source : Open3D mesh, (V, F) or Resampled
+        The surface the fields are given on.
+    target : Open3D mesh, (V, F), Resampled, or (p, 3) array of points
+        Where they are evaluated.
+
+    Returns
+    -------
+    TransferMap
+        ``transfer_map(source, target)(values) == transfer(values, source, target)``.
+
+    Raises
+    ------
+    MeshError
+        NaN or infinite target points.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from o3dheat.geometry.interpolation import transfer_map
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]]); F = np.array([[0, 1, 2]])
+    >>> move = transfer_map((V, F), np.array([[0.25, 0.25, 1.0], [0.5, 0.0, 0.0]]))
+    >>> move(V[:, 0]).round(6).tolist(), move(V[:, :2]).round(6).tolist()
+    ([0.25, 0.5], [[0.25, 0.25], [0.5, 0.0]])
+    """
     import open3d as o3d
 
     V, F = _surface_of(source)
@@ -70,7 +140,6 @@ def transfer(values: ArrayLike, source: MeshLike, target: MeshLike | np.ndarray)
                             f"{int(np.flatnonzero(bad)[0])}); there is no closest point to them")
     else:
         pts = _surface_of(target)[0]
-    vals = checks.field(values, len(V), "values (one row per source vertex)")
     # Open3D's closest-point scene is float32: centre and scale both point sets on the source's
     # bounding box first (georeferenced scans sit 1e6 units from the origin, where float32 steps
     # are 0.5 units); the barycentric coordinates are then computed in float64
@@ -87,9 +156,7 @@ def transfer(values: ArrayLike, source: MeshLike, target: MeshLike | np.ndarray)
     # barycentric coordinates in float64 at the float32 closest point, for exactness
     corner = np.asarray(F, dtype=np.int64)[tri]
     w = _barycentric(pts, V[corner[:, 0]], V[corner[:, 1]], V[corner[:, 2]])
-    if vals.ndim == 1:
-        return np.einsum("pk,pk->p", w, vals[corner])
-    return np.einsum("pk,pkc->pc", w, vals[corner])
+    return TransferMap(corner, w, len(V))
 
 
 def _barycentric(p, a, b, c):

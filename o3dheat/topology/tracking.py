@@ -23,17 +23,18 @@ not, the limits and the cost: ``docs/details/topology.md`` (Tracking).
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from o3dheat import checks
+from o3dheat import checks, parallel
 from o3dheat.errors import MeshError
 from o3dheat.typing import FieldLike, MeshLike, TimesLike
 
 from . import _loops
-from .critical import critical_points
+from .critical import CriticalPoints, critical_points
 from .diagrams import persistence
 from .surface import Surface
 
@@ -256,7 +257,7 @@ class _PerScale(np.ndarray):
 
 
 def track_critical_points(mesh: MeshLike | Surface, F: FieldLike, t: TimesLike,
-                          radius: float | None = None) -> Tracks:
+                          radius: float | None = None, *, critical: Sequence[CriticalPoints] | None = None) -> Tracks:
     """Follow the critical points of fields at increasing times across the scales.
 
     Parameters
@@ -272,6 +273,10 @@ def track_critical_points(mesh: MeshLike | Surface, F: FieldLike, t: TimesLike,
         lengths. A :class:`~o3dheat.topology.surface.Surface` made from faces alone (no positions)
         matches a saddle only where it stays on its vertex: one that moves is a death and a birth
         (extrema, which follow the flow, are tracked as with positions).
+    critical : sequence of CriticalPoints, optional
+        ``critical_points(mesh, F[:, j])`` for every column ``j``, when the caller has them already
+        (a scene draws them too); checked for number and mesh size only. Default: computed here,
+        the columns shared among threads (:mod:`o3dheat.parallel`).
 
     Returns
     -------
@@ -284,7 +289,7 @@ def track_critical_points(mesh: MeshLike | Surface, F: FieldLike, t: TimesLike,
 
     Notes
     -----
-    Cost: per scale one :func:`o3dheat.critical_points <o3dheat.topology.critical.critical_points>` (O(m), compiled), a walk up (down) the
+    Cost: per scale one :func:`o3dheat.critical_points <o3dheat.topology.critical.critical_points>` (O(m), compiled; none with ``critical``), a walk up (down) the
     steepest edges from each maximum (minimum) of the scale before, compiled, over the vertices it
     passes only, and bookkeeping in numpy over the critical points; :func:`o3dheat.persistence <o3dheat.topology.diagrams.persistence>`
     only at the scales where an extremum ends (its partner and the "most persistent" rule need
@@ -310,8 +315,9 @@ def track_critical_points(mesh: MeshLike | Surface, F: FieldLike, t: TimesLike,
     S = Surface.of(mesh)
     times, Fa, V, radius = _checked(S, F, t, radius)
     T = len(times)
+    critical = _critical(S, Fa, critical)
     diagrams = _Diagrams(S, Fa)
-    cur = _Scale(critical_points(S, Fa[:, 0]))
+    cur = _Scale(critical[0])
     ids = {k: np.arange(len(cur.v[k])) + o for k, o in zip(("minimum", "maximum", "saddle"),
                                                           np.cumsum([0, len(cur.v["minimum"]), len(cur.v["maximum"])]),
                                                           strict=True)}
@@ -320,7 +326,7 @@ def track_critical_points(mesh: MeshLike | Surface, F: FieldLike, t: TimesLike,
     alive = [_living(ids, cur)]
     events = []
     for i in range(T - 1):
-        nxt = _Scale(critical_points(S, Fa[:, i + 1]))
+        nxt = _Scale(critical[i + 1])
         new_of, ended = _follow_extrema(S, cur, nxt, Fa[:, i], Fa[:, i + 1], diagrams, i)
         partner = diagrams(i)[2] if ended else {}
         new_of["saddle"], gone = _follow_saddles(V, cur, nxt, ended, partner, radius)
@@ -354,6 +360,23 @@ def _checked(S, F, t, radius):
           or not (np.isfinite(radius) and radius > 0)):
         raise MeshError(f"radius must be a positive number, got {radius!r}")
     return times, Fa, V, radius
+
+
+def _critical(S, Fa, critical):
+    """The critical points of every column: ``critical`` checked (one per column, of this mesh's
+    size), or computed, the columns shared among threads."""
+    T = Fa.shape[1]
+    if critical is None:
+        return parallel.run(lambda j: critical_points(S, Fa[:, j]), [(j,) for j in range(T)])
+    critical = list(critical) if not isinstance(critical, (str, bytes)) and hasattr(critical, "__len__") else None
+    if critical is None or len(critical) != T:
+        raise MeshError(f"critical must be a sequence of {T} CriticalPoints, one per column of F")
+    for j, cp in enumerate(critical):
+        if not isinstance(cp, CriticalPoints) or cp.n != S.n:
+            what = f"of a mesh of {cp.n} vertices" if isinstance(cp, CriticalPoints) else f"a {type(cp).__name__}"
+            raise MeshError(f"critical[{j}] is {what}: give critical_points(mesh, F[:, {j}]) for this mesh of "
+                            f"{S.n} vertices")
+    return critical
 
 
 class _Diagrams:

@@ -14,13 +14,14 @@ import dataclasses
 import logging
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from o3dheat import checks, parallel
 from o3dheat.errors import MeshError
-from o3dheat.geometry import as_arrays, check_mesh, decimate, height, prepare, transfer, up_axis
+from o3dheat.geometry import as_arrays, check_mesh, decimate, height, prepare, transfer_map, up_axis
 from o3dheat.spectral import HeatFlow, HeatKernel, eigensolve
 from o3dheat.topology import Surface, critical_points, track_critical_points
 
@@ -238,19 +239,13 @@ def build(mesh, field=None, t=None, recipe: Recipe | None = None, echo: Callable
     given = _given_fields(mesh, field, len(V0), recipe)
     notes = [f"drawn with {why_up}"]
     V, F, given = _cleaned(V0, F0, given, notes)
-    fields = _smoothed(V, F, given, t, recipe, up, say)
-    if recipe.max_faces is not None and len(F) > recipe.max_faces:
-        say(f"decimating {len(F):,} faces to {recipe.max_faces:,} for the picture (max_faces, --max-faces; None "
-            "or 'none' keeps all)")
-        Vd, Fd = decimate((V, F), target_faces=recipe.max_faces).arrays
-        notes.append(f"shown on a decimated copy: {len(F):,} → {len(Fd):,} faces ({len(V):,} → {len(Vd):,} "
-                     "vertices), the fields computed on the full mesh and transferred")
-        fields = [(name, transfer(vals, (V, F), Vd), times, eps, label) for name, vals, times, eps, label in fields]
-        V, F = Vd, Fd
-    F = _layout.oriented(V, F)
+    # the operators first (GIL-bound numpy), then the surface as drawn in a thread beside the flow's
+    # factorization and solves (which release the GIL and leave part of a core idle)
+    smoother = _Smoother(V, F, recipe, say) if any(vals is None or vals.ndim == 1 for _, vals in given) else None
+    shown = _Shown(V, F, recipe.max_faces, say)
+    fields = _smoothed(smoother, given, t, up, say)
+    V, F, S, parts, fields = shown.drawn(fields, notes)
     t0 = time.perf_counter()
-    S = Surface.from_faces(len(V), F, V)
-    parts = _panels.vertex_parts(len(V), F)
     out = tuple(_with_critical_points(S, parts, *field) for field in fields)
     say(f"critical points at {sum(f.values.shape[1] for f in out)} scales: {time.perf_counter() - t0:.1f} s")
     tracks = {}
@@ -258,10 +253,49 @@ def build(mesh, field=None, t=None, recipe: Recipe | None = None, echo: Callable
         for f in out:
             if f.values.shape[1] > 1 and np.all(np.isfinite(f.times)) and np.all(np.diff(f.times) > 0):
                 t0 = time.perf_counter()
-                tracks[f.name] = track_critical_points(S, f.values, f.times)
+                tracks[f.name] = track_critical_points(S, f.values, f.times, critical=f.critical)
                 say(f"tracks of {f.name}: {len(tracks[f.name]):,} in {time.perf_counter() - t0:.1f} s")
     return Scene(V, F, out, tracks, up=up, levels=recipe.levels, cmap=recipe.cmap, notes=tuple(notes),
                  name=_name(recipe.source))
+
+
+class _Shown:
+    """The surface as drawn, made in a background thread while the fields are computed (it needs the
+    geometry only): the mesh itself or, above ``max_faces`` faces, a decimated copy with the map that
+    moves fields onto it (:func:`~o3dheat.geometry.interpolation.transfer_map`); its faces wound
+    consistently (:func:`._layout.oriented`), its :class:`~o3dheat.topology.surface.Surface` with
+    the edge tables built, and its parts."""
+
+    def __init__(self, V, F, max_faces, say):
+        self.n, self.m = len(V), len(F)
+        decimating = max_faces is not None and len(F) > max_faces
+        if decimating:
+            say(f"decimating {len(F):,} faces to {max_faces:,} for the picture, while the fields are computed "
+                "(max_faces, --max-faces; None or 'none' keeps all)")
+        pool = ThreadPoolExecutor(1, thread_name_prefix="o3dheat-surface")
+        self.future = pool.submit(self._made, V, F, max_faces if decimating else None)
+        pool.shutdown(wait=False)  # the thread ends with its one task
+
+    @staticmethod
+    def _made(V, F, max_faces):
+        move = None
+        if max_faces is not None:
+            Vd, Fd = decimate((V, F), target_faces=max_faces, vertex_map=False).arrays
+            V, F, move = Vd, Fd, transfer_map((V, F), Vd)
+        F = _layout.oriented(V, F)
+        S = Surface.from_faces(len(V), F, V)
+        S.E  # noqa: B018 - the edge tables, built here (the tracks' radius reads them)
+        return V, F, S, _panels.vertex_parts(len(V), F), move
+
+    def drawn(self, fields, notes):
+        """``(V, F, S, parts, fields)`` as drawn: the fields moved onto the decimated copy (said in
+        ``notes``)."""
+        V, F, S, parts, move = self.future.result()
+        if move is not None:
+            notes.append(f"shown on a decimated copy: {self.m:,} → {len(F):,} faces ({self.n:,} → "
+                         f"{len(V):,} vertices), the fields computed on the full mesh and transferred")
+            fields = [(name, move(vals), times, eps, label) for name, vals, times, eps, label in fields]
+        return V, F, S, parts, fields
 
 
 def _with_critical_points(S, parts, name, vals, times, eps, label):
@@ -340,15 +374,16 @@ def _cleaned(V, F, given, notes):
     return p.V, p.F, [(name, None if vals is None else p.restrict(vals)) for name, vals in given]
 
 
-def _smoothed(V, F, given, t, recipe, up, say):
-    """``[(name, values (n, T), times, eps_inf, label)]``: each field over its scales."""
+def _smoothed(smoother, given, t, up, say):
+    """``[(name, values (n, T), times, eps_inf, label)]``: each field over its scales (``smoother``:
+    None when every field is given over its scales)."""
     out = []
-    smoother = None
+    recipe = smoother.recipe if smoother is not None else None
     for name, vals in given:
         default = vals is None
         if default:  # the noisy height along up
-            h = height(V, up)
-            vals = h + recipe.noise * np.ptp(h) * np.random.default_rng(recipe.seed).standard_normal(len(V))
+            h = height(smoother.V, up)
+            vals = h + recipe.noise * np.ptp(h) * np.random.default_rng(recipe.seed).standard_normal(len(h))
             name = "f"  # as in the demo: the noisy height
         if vals.ndim == 2:
             T = vals.shape[1]
@@ -357,8 +392,6 @@ def _smoothed(V, F, given, t, recipe, up, say):
                 raise MeshError(f"{len(times)} times given for {name!r}, which has {T} columns")
             out.append((name, vals, times, None, "as given"))
             continue
-        if smoother is None:
-            smoother = _Smoother(V, F, recipe, say)
         grids = [("", checks.times(t), "times given")] if t is not None else [
             ("", smoother.grid(20, "log"), "20 log-spaced scales, the whole multi-scale range"),
             ("_paper", smoother.grid(10, "paper"), f"the paper's 10 scales (i/10)/λ_{recipe.k}")]

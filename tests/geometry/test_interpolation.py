@@ -63,3 +63,23 @@ def test_transfer_to_non_finite_points_and_nearest_of_nothing_are_one_line_error
         nearest([], np.zeros((0, 3)), V)
     with pytest.raises(o3dheat.MeshError, match="finite"):
         nearest([1.0], [[np.nan, 0, 0]], V)
+
+
+def test_transfer_map_made_once_moves_every_field_as_transfer_does():
+    from o3dheat.geometry.interpolation import TransferMap, transfer_map
+
+    V, F = icosphere(3)
+    r = decimate((V, F), 0.6, vertex_map=False)
+    move = transfer_map((V, F), r)
+    assert isinstance(move, TransferMap) and move.corners.shape == move.weights.shape == (len(r.V), 3)
+    np.testing.assert_allclose(move.weights.sum(axis=1), 1.0, rtol=0, atol=1e-12)
+    assert (move.weights >= 0).all()
+    f = np.c_[V[:, 0] ** 2, np.sin(3 * V[:, 1]), V[:, 2]]
+    np.testing.assert_array_equal(move(f), transfer(f, (V, F), r))
+    np.testing.assert_array_equal(move(f[:, 1]), transfer(f[:, 1], (V, F), r))
+    with pytest.raises(o3dheat.MeshError, match="one row per source vertex"):
+        move(f[:-1])
+    bad = f[:, 0].copy()
+    bad[7] = np.inf
+    with pytest.raises(o3dheat.MeshError):
+        move(bad)

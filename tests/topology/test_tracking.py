@@ -320,3 +320,24 @@ def test_euler_characteristic_is_an_attribute_like_first_last_and_lifetime():
     # a subset keeps the invariant only for what it keeps: the sum over its tracks
     kept = tr.subset(tr.kind != "saddle")
     assert kept.euler_characteristic.tolist() == [2, 2, 2]
+
+
+def test_critical_points_given_are_used_as_computed_and_checked():
+    """``critical=`` (a scene has them already) gives the very tracks computed without it; a wrong
+    number of them, another mesh's, or something else is a one-line MeshError."""
+    V, F = icosphere(4)
+    f = V[:, 2] + 0.2 * np.random.default_rng(3).standard_normal(len(V))
+    t = np.geomspace(1e-4, 0.3, 8)
+    Ft = o3dheat.heat_flow((V, F), f, t)
+    S = o3dheat.topology.Surface.of((V, F))
+    cps = [o3dheat.critical_points(S, Ft[:, j]) for j in range(len(t))]
+    a = o3dheat.track_critical_points(S, Ft, t)
+    b = o3dheat.track_critical_points(S, Ft, t, critical=cps)
+    assert len(a) > 4 and a.events == b.events
+    np.testing.assert_array_equal(a.vertex, b.vertex)
+    np.testing.assert_array_equal(a.kind, b.kind)
+    other = o3dheat.critical_points(icosphere(2), icosphere(2)[0][:, 2])
+    for bad, msg in ((cps[:-1], "sequence of 8 CriticalPoints"), (cps[:-1] + [other], r"critical\[7\] is of a mesh"),
+                     (cps[:-1] + ["x"], r"critical\[7\] is a str"), ("abcdefgh", "sequence of 8"), (3, "sequence of 8")):
+        with pytest.raises(o3dheat.MeshError, match=msg):
+            o3dheat.track_critical_points(S, Ft, t, critical=bad)

@@ -439,6 +439,44 @@ def test_the_page_works_in_an_iframe_srcdoc(scenes, browser, tmp_path):
         page.close()
 
 
+def test_the_data_deflated_in_pieces_inflate_in_python_and_in_the_browser(scenes, browser, tmp_path, monkeypatch):
+    """The blob's deflate stream is made in pieces on several threads (pigz's method), each piece
+    with its own zlib strategy: any split inflates to the same bytes, by gzip.decompress and by the
+    browser's DecompressionStream (here with 4 KiB pieces, dozens of them: the page reads the same
+    data and counts). Pieces that do not cover the data are refused."""
+    import os
+    import zlib
+
+    from o3dheat.visualization import page as page_module
+
+    gz = page_module._gzip
+    strategies = (zlib.Z_DEFAULT_STRATEGY, zlib.Z_HUFFMAN_ONLY, zlib.Z_RLE, zlib.Z_FILTERED)
+    rng = np.random.default_rng(0)
+    for data in (b"", b"x", os.urandom(10_000), bytes(range(256)) * 1000):
+        assert gzip.decompress(gz(data)) == data
+        cuts = np.unique(np.r_[0, rng.integers(0, len(data) + 1, 6), len(data)]).tolist()
+        pieces = [(a, b, strategies[i % 4]) for i, (a, b) in enumerate(zip(cuts, cuts[1:], strict=False))]
+        assert gzip.decompress(gz(data, pieces)) == data
+    with pytest.raises(ValueError, match="cover"):
+        gz(b"abcdef", [(0, 2, 0), (3, 6, 0)])
+    scene = scenes["parts"]
+    monkeypatch.setattr(page_module, "_PIECE", 4096)
+    text = page_html(scene)
+    blob = base64.b64decode(re.search(r'id="o3dheat-data">(.*?)</script>', text, re.S).group(1))
+    assert blob.count(b"\x00\x00\xff\xff") >= 10  # the sync flushes between pieces
+    path = tmp_path / "pieces.html"
+    path.write_text(text, encoding="utf-8")
+    page = browser.open(path)
+    try:
+        assert page.js("o3dheat.error") is None and page.js("o3dheat.ready") is True
+        last = len(scene.fields[0].times) - 1
+        page.set_scale(last)
+        assert page.js("o3dheat.counts()") == counts(scene.fields[0].critical[-1])
+        assert drawn(page.picture()) > 0.05 and page.errors == []
+    finally:
+        page.close()
+
+
 def test_without_webgl_the_page_says_so(scenes, browser, tmp_path):
     path = tmp_path / "nogl.html"
     path.write_text(page_html(scenes["closed"]), encoding="utf-8")
@@ -480,3 +518,28 @@ def test_the_page_draws_no_track_move_the_figures_leave_out():
     html = page_html(Scene(V, F, (ScaleField("x", np.c_[f, 0.5 * f], np.array([0.0, 1.0]), cp),)))
     meta = json.loads(re.search(r'id="o3dheat-meta">(.*?)</script>', html, re.S).group(1))
     assert meta["jump"] == pytest.approx(longest_move(V, F)) and meta["jump"] > 0
+
+
+def test_closed_means_every_edge_has_two_faces():
+    """The page draws front faces only on closed surfaces: ``_closed`` against the count of each
+    edge's faces, on random face soups (edges of 1, 2, 3+ faces), a sphere, and a sphere with a hole."""
+    from o3dheat.visualization.page import _closed
+
+    def by_count(F, n):
+        edges = {}
+        for f in F.tolist():
+            for a, b in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0])):
+                edges[min(a, b), max(a, b)] = edges.get((min(a, b), max(a, b)), 0) + 1
+        return all(c == 2 for c in edges.values())
+
+    m = o3d.geometry.TriangleMesh.create_sphere(1.0, 10)
+    F0 = np.asarray(m.triangles).astype(np.int64)
+    assert _closed(F0, len(m.vertices)) and not _closed(F0[1:], len(m.vertices))
+    rng = np.random.default_rng(1)
+    seen = set()
+    for _ in range(400):
+        n = int(rng.integers(3, 6))
+        F = np.array([rng.choice(n, 3, replace=False) for _ in range(int(rng.integers(1, 9)))])
+        seen.add(by_count(F, n))
+        assert _closed(F, n) == by_count(F, n), F.tolist()
+    assert seen == {True, False}

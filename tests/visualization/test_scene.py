@@ -96,6 +96,42 @@ def test_a_large_mesh_is_shown_decimated_with_the_fields_of_the_full_mesh_transf
     assert s.fields[0].critical[0].counts == o3dheat.critical_points((s.V, s.F), s.fields[0].values[:, 0]).counts
 
 
+def test_the_decimated_copy_is_made_beside_the_flow_and_its_errors_reach_the_caller(monkeypatch):
+    """The copy needs the geometry only: it is made in a background thread while the fields are
+    computed, and a failure there is raised by build, not lost."""
+    import threading
+
+    from o3dheat.errors import MeshError
+    from o3dheat.visualization import scene as scene_module
+
+    V, F = icosphere(4)
+    seen = []
+    decimate, apply = scene_module.decimate, scene_module.HeatFlow.apply
+
+    def recorded_decimate(*args, **kwargs):
+        seen.append(("decimate", threading.current_thread().name))
+        return decimate(*args, **kwargs)
+
+    def recorded_apply(self, *args, **kwargs):
+        seen.append(("flow", threading.current_thread().name))
+        return apply(self, *args, **kwargs)
+
+    monkeypatch.setattr(scene_module, "decimate", recorded_decimate)
+    monkeypatch.setattr(scene_module.HeatFlow, "apply", recorded_apply)
+    s = build((V, F), V[:, 2], [0.01, 0.1], Recipe(max_faces=1000, tracks=False))
+    assert len(s.F) <= 1000
+    assert {kind for kind, _ in seen} == {"decimate", "flow"}
+    where = dict(seen)
+    assert where["decimate"].startswith("o3dheat-surface") and where["flow"] == threading.current_thread().name
+
+    def failing(*args, **kwargs):
+        raise MeshError("decimate: no luck")
+
+    monkeypatch.setattr(scene_module, "decimate", failing)
+    with pytest.raises(MeshError, match="no luck"):
+        build((V, F), V[:, 2], [0.01, 0.1], Recipe(max_faces=1000, tracks=False))
+
+
 def test_up_follows_the_source_file_and_height_is_along_it():
     V, F = icosphere(2)
     s = build((V, F), recipe=Recipe(source="scan.obj", noise=0.0, tracks=False), t=[0.0])
