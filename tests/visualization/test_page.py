@@ -110,7 +110,8 @@ def test_quantized_values_decode_within_a_step(scenes):
     n = len(scene.V)
     for i, field in enumerate(scene.fields):
         fm = meta["fields"][i]
-        q = array(fm["values"]).reshape(-1, n)
+        planes = array(fm["values"]).reshape(-1, 2, n).astype(np.uint16)  # per scale: high bytes, low bytes
+        q = planes[:, 0] << 8 | planes[:, 1]
         assert q.shape[0] == field.values.shape[1]
         for j in range(q.shape[0]):
             lo, hi = fm["lo"][j], fm["hi"][j]
@@ -440,25 +441,18 @@ def test_the_page_works_in_an_iframe_srcdoc(scenes, browser, tmp_path):
 
 
 def test_the_data_deflated_in_pieces_inflate_in_python_and_in_the_browser(scenes, browser, tmp_path, monkeypatch):
-    """The blob's deflate stream is made in pieces on several threads (pigz's method), each piece
-    with its own zlib strategy: any split inflates to the same bytes, by gzip.decompress and by the
-    browser's DecompressionStream (here with 4 KiB pieces, dozens of them: the page reads the same
-    data and counts). Pieces that do not cover the data are refused."""
+    """The blob's deflate stream is made in pieces on several threads (pigz's method): any split
+    inflates to the same bytes, by gzip.decompress and by the browser's DecompressionStream (here
+    with 4 KiB pieces, dozens of them: the page reads the same data and counts)."""
     import os
-    import zlib
 
     from o3dheat.visualization import page as page_module
 
     gz = page_module._gzip
-    strategies = (zlib.Z_DEFAULT_STRATEGY, zlib.Z_HUFFMAN_ONLY, zlib.Z_RLE, zlib.Z_FILTERED)
-    rng = np.random.default_rng(0)
     for data in (b"", b"x", os.urandom(10_000), bytes(range(256)) * 1000):
-        assert gzip.decompress(gz(data)) == data
-        cuts = np.unique(np.r_[0, rng.integers(0, len(data) + 1, 6), len(data)]).tolist()
-        pieces = [(a, b, strategies[i % 4]) for i, (a, b) in enumerate(zip(cuts, cuts[1:], strict=False))]
-        assert gzip.decompress(gz(data, pieces)) == data
-    with pytest.raises(ValueError, match="cover"):
-        gz(b"abcdef", [(0, 2, 0), (3, 6, 0)])
+        for piece in (None, 1, 4095, 4096, 10_000):
+            if len(data) // (piece or 1 << 30) < 3000:
+                assert gzip.decompress(gz(data, piece)) == data
     scene = scenes["parts"]
     monkeypatch.setattr(page_module, "_PIECE", 4096)
     text = page_html(scene)

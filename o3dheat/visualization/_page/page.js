@@ -228,10 +228,20 @@
   }
 
   // ------------------------------------------------------------------ fields and scales
+  // the quantized values, stored per scale as two byte planes (high bytes, then low bytes): one Uint16Array
+  function joined(planes, T) {
+    const q = new Uint16Array(n * T);
+    for (let j = 0; j < T; j++) {
+      const hi = 2 * j * n, lo = hi + n, o = j * n;
+      for (let v = 0; v < n; v++) q[o + v] = (planes[hi + v] << 8) | planes[lo + v];
+    }
+    return q;
+  }
+
   function fieldData(i) {
     if (!fieldCache[i]) {
       const f = meta.fields[i];
-      const c = { meta: f, q: data(f.values), critical: data(f.critical), tracks: null };
+      const c = { meta: f, q: joined(data(f.values), f.T), critical: data(f.critical), tracks: null };
       if (f.tracks) {
         const t = f.tracks;
         c.tracks = { p: t.p, vertex: data(t.vertex), kind: data(t.kind), lifetime: data(t.lifetime) };
