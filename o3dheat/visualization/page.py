@@ -45,7 +45,8 @@ The setters throw (an ``Error``) before ``ready``, and a ``RangeError`` on a bad
 drawn synchronously; to wait until it is on screen, wait for the next animation frame.
 
 How the data are stored: the positions (float32, centred on the bounding box and turned so that
-``scene.up`` is the third axis, as :mod:`~o3dheat.visualization.plot` does), the faces (uint32), each
+``scene.up`` is the third axis, as :mod:`~o3dheat.visualization.plot` does), the faces (uint16 up to
+65,536 vertices, else uint32), each
 field's values quantized per scale to 16 bits over that scale's ``(lo, hi)`` (``lo + q (hi − lo) /
 65535``, within ``(hi − lo) / 65535`` of the float64 value; stored as two byte planes per scale, the
 high bytes then the low ones, joined again by the page), the critical vertices per scale and kind
@@ -127,7 +128,7 @@ def page_html(scene: Scene) -> str:
     n = len(V)
     pack = _Packer()
     pack.add("positions", (V - center)[:, UP[scene.up]].astype(np.float32))
-    pack.add("faces", F.astype(np.uint32))
+    pack.add("faces", F.astype(np.uint16 if n <= 65536 else np.uint32))  # (WebGL reads both index types)
     names = [f.name for f in scene.fields]
     fields = [_field(pack, i, field, n) for i, field in enumerate(scene.fields)]
     for key, tracks in scene.tracks.items():

@@ -471,6 +471,31 @@ def test_the_data_deflated_in_pieces_inflate_in_python_and_in_the_browser(scenes
         page.close()
 
 
+def test_faces_are_16_bit_up_to_65536_vertices_and_32_bit_beyond(browser, tmp_path):
+    """The index type follows the mesh's size (WebGL reads both): a 72k-vertex sphere's page has
+    uint32 faces, draws, and counts as Python does."""
+    m = o3d.geometry.TriangleMesh.create_sphere(1.0, 190)
+    V, F = arrays(m)
+    assert len(V) > 65536
+    field = scale_field(V, F, V[:, 2], "height", times=[1e-3, 1e-2])
+    scene = Scene(V, F, (field,), name="big sphere")
+    text = page_html(scene)
+    meta, array = decoded(text)
+    assert meta["layout"]["faces"][2] == "Uint32Array" and array("faces").reshape(-1, 3).tolist() == F.tolist()
+    small = decoded(page_html(make_scene("closed")))[0]
+    assert small["layout"]["faces"][2] == "Uint16Array"
+    path = tmp_path / "big.html"
+    path.write_text(text, encoding="utf-8")
+    page = browser.open(path)
+    try:
+        assert page.js("o3dheat.error") is None and page.js("o3dheat.ready") is True
+        page.set_scale(1)
+        assert page.js("o3dheat.counts()") == counts(field.critical[1])
+        assert drawn(page.picture()) > 0.05 and page.errors == []
+    finally:
+        page.close()
+
+
 def test_without_webgl_the_page_says_so(scenes, browser, tmp_path):
     path = tmp_path / "nogl.html"
     path.write_text(page_html(scenes["closed"]), encoding="utf-8")
