@@ -64,6 +64,8 @@ def flat_parts(f, parts):
     only when exactly constant)."""
     k = int(parts.max()) + 1 if len(parts) else 0
     used = parts >= 0
+    if k == 1:  # one part: flat only when constant (its variation is the whole mesh's)
+        return np.array([float(np.ptp(f[used])) == 0.0])
     lo, hi = np.full(k, np.inf), np.full(k, -np.inf)
     np.minimum.at(lo, parts[used], f[used])
     np.maximum.at(hi, parts[used], f[used])

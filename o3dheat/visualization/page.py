@@ -57,7 +57,7 @@ as pigz does) and base64-encoded; the browser inflates it with ``DecompressionSt
 The layout, the ranges, times, counts and texts are in a JSON block beside it. Size: three.js is
 0.7 MB; values take at most 2.7 bytes of page per vertex and scale (incompressible noise), about
 1.8 for smooth fields, the surface 6–10 per vertex and 4–6 per face (a sphere of 200k vertices,
-400k faces and 20 scales: 10.4 MB with smooth fields, 13.9 MB with uniform noise).
+400k faces and 20 scales: 10.7 MB with smooth fields, 13.9 MB with uniform noise).
 """
 
 from __future__ import annotations
@@ -126,6 +126,9 @@ def page_html(scene: Scene) -> str:
     """
     V, F, center = _surface(scene)
     n = len(V)
+    # the surface's measures first: the packer deflates on the other threads from its first array on
+    surface = {"radius": float(np.linalg.norm(V - center, axis=1).max()), "diagonal": float(np.linalg.norm(np.ptp(V, axis=0))),
+               "closed": _closed(F, n), "area": _area(V, F), "jump": longest_move(V, F)}
     pack = _Packer()
     pack.add("positions", (V - center)[:, UP[scene.up]].astype(np.float32))
     pack.add("faces", F.astype(np.uint16 if n <= 65536 else np.uint32))  # (WebGL reads both index types)
@@ -139,9 +142,7 @@ def page_html(scene: Scene) -> str:
     meta = {
         "name": str(scene.name), "notes": [str(s) for s in scene.notes], "n": n, "m": len(F),
         "up": scene.up, "view": _view(scene.view), "levels": _levels(scene.levels), "cmap": str(scene.cmap),
-        "lut": _lut(scene.cmap), "radius": float(np.linalg.norm(V - center, axis=1).max()),
-        "diagonal": float(np.linalg.norm(np.ptp(V, axis=0))), "closed": _closed(F, n), "area": _area(V, F),
-        "jump": longest_move(V, F),
+        "lut": _lut(scene.cmap), **surface,
         "fields": fields,
         "layout": pack.layout,
     }
@@ -149,7 +150,7 @@ def page_html(scene: Scene) -> str:
         "title": html.escape(str(scene.name)),
         "meta": json.dumps(meta, allow_nan=False, separators=(",", ":")).replace("<", "\\u003c")
         .replace(">", "\\u003e").replace("&", "\\u0026"),
-        "data": base64.b64encode(_gzip(pack.bytes())).decode("ascii"),
+        "data": base64.b64encode(pack.gzip()).decode("ascii"),
         "three": _three(),
         "script": _asset("page.js"),
     }
@@ -157,24 +158,40 @@ def page_html(scene: Scene) -> str:
 
 
 def _gzip(data: bytes, piece: int | None = None) -> bytes:
-    """``data`` as one gzip member (RFC 1952), level 1, its deflate stream made in pieces of
-    ``piece`` bytes (default :data:`_PIECE`) on :mod:`o3dheat.parallel`'s threads (zlib releases the
-    GIL): each piece a raw deflate run ended by a sync flush (an empty stored block, byte-aligned),
-    the last by the final block, so their concatenation is one valid stream (pigz's method; a piece
-    refers to no earlier piece). Decompresses to ``data`` with any inflater (``gzip.decompress``,
-    ``DecompressionStream``)."""
-    piece = piece or _PIECE
-    view = memoryview(data)
-    starts = list(range(0, len(data), piece)) or [0]
+    """``data`` as one gzip member (RFC 1952), deflated in pieces on threads (:class:`_Deflater`).
+    Decompresses to ``data`` with any inflater (``gzip.decompress``, ``DecompressionStream``)."""
+    return _Deflater(piece).feed(data).finish()
 
-    def deflate(start):
-        z = zlib.compressobj(1, zlib.DEFLATED, -15)
-        last = start + piece >= len(data)
-        return z.compress(view[start:start + piece]) + z.flush(zlib.Z_FINISH if last else zlib.Z_SYNC_FLUSH)
 
-    body = parallel.run(deflate, [(s,) for s in starts])
-    header = b"\x1f\x8b\x08\x00\x00\x00\x00\x00\x04\xff"  # magic, deflate, no flags, mtime 0, fastest, OS unknown
-    return header + b"".join(body) + struct.pack("<II", zlib.crc32(data), len(data) & 0xFFFFFFFF)
+class _Deflater:
+    """One gzip member made piece by piece, pigz's way: each piece of ``piece`` bytes (default
+    :data:`_PIECE`) fed is deflated (level 1) on :mod:`o3dheat.parallel`'s pool while the caller
+    goes on (zlib releases the GIL), as a raw deflate run ended by a sync flush (an empty stored
+    block, byte-aligned); :meth:`finish` adds the final empty block, so the concatenation is one
+    valid deflate stream (a piece refers to no earlier piece), and the CRC-32 and size."""
+
+    HEADER = b"\x1f\x8b\x08\x00\x00\x00\x00\x00\x04\xff"  # magic, deflate, no flags, mtime 0, fastest, OS unknown
+
+    def __init__(self, piece=None):
+        self.piece, self.jobs, self.crc, self.size = piece or _PIECE, [], 0, 0
+
+    def feed(self, data, level=1):
+        """Deflate ``data`` at ``level`` (0: stored, for bytes that do not compress)."""
+        view = memoryview(data)
+        self.crc, self.size = zlib.crc32(view, self.crc), self.size + len(view)
+        self.jobs += [parallel.background(_deflated, view[a:a + self.piece], level, False)
+                      for a in range(0, len(view), self.piece)]
+        return self
+
+    def finish(self):
+        body = b"".join(job.result() for job in self.jobs)
+        return self.HEADER + body + _deflated(b"", 1, True) + struct.pack("<II", self.crc, self.size & 0xFFFFFFFF)
+
+
+def _deflated(data, level, final):
+    """A raw deflate run of ``data``, ended by the final block or by a sync flush."""
+    z = zlib.compressobj(level, zlib.DEFLATED, -15)
+    return z.compress(data) + z.flush(zlib.Z_FINISH if final else zlib.Z_SYNC_FLUSH)
 
 
 # ------------------------------------------------------------------ checks and pieces of the page
@@ -232,7 +249,8 @@ def _field(pack, i, field, n):
     if len(field.critical) != T:
         raise MeshError(f"field {field.name!r}: {len(field.critical)} CriticalPoints for {T} columns of values")
     lo, hi = values.min(axis=0), values.max(axis=0)
-    pack.add(f"values{i}", _quantized(values, lo, hi))
+    planes = _quantized(values, lo, hi)  # (T, 2, n): the low bytes stored, deflate gains nothing on them
+    pack.add(f"values{i}", planes.reshape(2 * T, n), levels=[1, 0] * T)
     markers = field.critical if field.markers is None else field.markers
     if len(markers) != T:
         raise MeshError(f"field {field.name!r}: {len(markers)} sets of markers for {T} columns of values")
@@ -264,7 +282,8 @@ def _quantized(values, lo, hi):
     (0 where the column is constant), stored as two byte planes: ``[j, 0]`` the high bytes
     ``q >> 8``, ``[j, 1]`` the low bytes. The high bytes of a smooth field vary slowly from vertex to
     vertex, which deflate's matching finds when they are not interleaved with the noisy low bytes:
-    19-30% smaller than interleaved uint16, and faster to deflate."""
+    19-30% smaller than interleaved uint16, and faster to deflate. The low bytes do not deflate at
+    all (the page stores them: level 0)."""
     n, T = values.shape
     out = np.empty((T, 2, n), np.uint8)
     for j in range(T):  # one column at a time: no (n, T) float temporary
@@ -334,25 +353,33 @@ _PIECE = 1 << 18
 
 
 class _Packer:
-    """Arrays laid out one after the other in one byte string, each at a multiple of 8 bytes;
-    :attr:`layout` maps a name to ``[byte offset, length, type]`` (a JavaScript typed-array name)."""
+    """Arrays laid out one after the other in one byte string, each at a multiple of 8 bytes, and
+    deflated as they come (:class:`_Deflater`: on other threads while the page's next pieces are
+    made); :attr:`layout` maps a name to ``[byte offset, length, type]`` (a JavaScript typed-array
+    name); :meth:`gzip` is the whole as one gzip member."""
 
     TYPES = {"float32": "Float32Array", "float64": "Float64Array", "uint32": "Uint32Array",
              "int32": "Int32Array", "uint16": "Uint16Array", "uint8": "Uint8Array"}
 
     def __init__(self):
-        self.layout, self._chunks, self._size = {}, [], 0
+        self.layout, self._size, self._deflater = {}, 0, _Deflater()
 
-    def add(self, name, a):
+    def add(self, name, a, levels=None):
+        """Append the array ``a``; ``levels``: per row of its first axis, the deflate level of that
+        row (0: stored, for bytes that do not compress); default 1 for every row."""
         a = np.ascontiguousarray(a)
-        data = a.astype(a.dtype.newbyteorder("<"), copy=False).tobytes()
+        a = a.astype(a.dtype.newbyteorder("<"), copy=False)
         self.layout[name] = [self._size, int(a.size), self.TYPES[a.dtype.name]]
-        pad = -len(data) % 8
-        self._chunks += [data, b"\0" * pad]
-        self._size += len(data) + pad
+        rows = [(a.tobytes(), 1)] if levels is None else [(r.tobytes(), lv) for r, lv in zip(a, levels, strict=True)]
+        for data, level in rows:
+            self._deflater.feed(data, level)
+            self._size += len(data)
+        pad = b"\0" * (-self._size % 8)
+        self._deflater.feed(pad)
+        self._size += len(pad)
 
-    def bytes(self):
-        return b"".join(self._chunks)
+    def gzip(self):
+        return self._deflater.finish()
 
 
 @functools.cache
