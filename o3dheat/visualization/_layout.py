@@ -217,9 +217,20 @@ def picture(ax, panel, r, frame, normals, w, paths=None):
     :meth:`Panel.render <o3dheat.visualization._panels.Panel.render>`)."""
     # level sets 1.6 pixels wide in the saved figure (100 dpi), whatever the downsampling
     shrink = r.size * np.ptp(frame.u) / (2 * frame.half) / (w * 100)
-    ax.imshow(panel.render(r, frame, normals, line_width=1.6 * shrink, pixel=np.ptp(frame.u) / (w * 100),
-                           paths=paths), interpolation="antialiased")
+    image = panel.render(r, frame, normals, line_width=1.6 * shrink, pixel=np.ptp(frame.u) / (w * 100), paths=paths)
+    ax.imshow(_binned(image, int(image.shape[1] // (w * 100))), interpolation="antialiased")
     ax.set_axis_off()
+
+
+def _binned(image, k):
+    """``image`` (h, w, c) uint8 averaged over k x k blocks (k >= 2; else as it is): the render's
+    supersampling brought near the figure's pixels by a box filter, so that matplotlib's
+    antialiasing filter (its cost grows with the input's pixels) only bridges the last step."""
+    if k < 2:
+        return image
+    h, w = image.shape[0] // k * k, image.shape[1] // k * k
+    blocks = image[:h, :w].reshape(h // k, k, w // k, k, -1).astype(np.float32)
+    return np.rint(blocks.mean(axis=(1, 3))).astype(np.uint8)
 
 
 def note(ax, notes, w, each=True):
