@@ -415,8 +415,8 @@ def test_a_fan_of_many_faces_assembles_like_libigl():
     F = np.c_[np.zeros(N, int), 1 + np.arange(N), 1 + (np.arange(N) + 1) % N]
     L = fem.stiffness_matrix((V, F))
     assert abs(L + igl.cotmatrix(V, F)).max() < 1e-9 * abs(L).max()
-    with pytest.raises(MeshError, match="face indices must lie in"):
-        fem.stiffness_matrix(V[:4], np.array([[0, 1, 2], [1, 3, 4]]))
+    with pytest.raises(MeshError, match=r"face indices .*must lie in \[0, 3\]"):
+        fem.stiffness_matrix((V[:4], np.array([[0, 1, 2], [1, 3, 4]])))
 
 
 def test_out_of_memory_in_the_flow_is_said_as_out_of_memory(monkeypatch):
