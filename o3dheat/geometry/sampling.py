@@ -182,11 +182,13 @@ def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = 
     """
     import fast_simplification
 
+    checks.flag(vertex_map, "vertex_map")
     V, F = as_arrays(mesh)
+    identity = np.arange(len(V)) if vertex_map else None  # the map of a decimation that removes nothing
     if target_faces is not None:
         target_faces = checks.count(target_faces, "target_faces", minimum=MIN_FACES, maximum=2**62)
         if target_faces >= len(F):
-            return Resampled(V, F, "decimate", {"target_faces": target_faces}, np.arange(len(V)))
+            return Resampled(V, F, "decimate", {"target_faces": target_faces}, identity)
         reduction = 1.0 - target_faces / len(F)
     if isinstance(reduction, bool) or not isinstance(reduction, (int, float, np.integer, np.floating)) \
             or not 0.0 <= reduction < 1.0:
@@ -197,8 +199,7 @@ def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = 
         raise MeshError(f"decimate: reduction={reduction:g} of {len(F)} faces would leave {left}, fewer than "
                         f"{MIN_FACES}: use a reduction of at most {1 - MIN_FACES / len(F):.4g}, or target_faces")
     if reduction == 0:
-        return Resampled(V, F, "decimate", params, np.arange(len(V)))
-    checks.flag(vertex_map, "vertex_map")
+        return Resampled(V, F, "decimate", params, identity)
     with _FAST_SIMPLIFICATION:
         V2, F2, *collapses = fast_simplification.simplify(V, F.astype(np.int32), target_reduction=float(reduction),
                                                           return_collapses=vertex_map)

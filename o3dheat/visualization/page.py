@@ -46,7 +46,7 @@ drawn synchronously; to wait until it is on screen, wait for the next animation 
 
 How the data are stored: the positions (float32, centred on the bounding box and turned so that
 ``scene.up`` is the third axis, as :mod:`~o3dheat.visualization.plot` does), the faces (uint16 up to
-65,536 vertices, else uint32), each
+65,535 vertices, else uint32), each
 field's values quantized per scale to 16 bits over that scale's ``(lo, hi)`` (``lo + q (hi − lo) /
 65535``, within ``(hi − lo) / 65535`` of the float64 value; stored as two byte planes per scale, the
 high bytes then the low ones, joined again by the page), the critical vertices per scale and kind
@@ -131,7 +131,8 @@ def page_html(scene: Scene) -> str:
                "closed": _closed(F, n), "area": _area(V, F), "jump": longest_move(V, F)}
     pack = _Packer()
     pack.add("positions", (V - center)[:, UP[scene.up]].astype(np.float32))
-    pack.add("faces", F.astype(np.uint16 if n <= 65536 else np.uint32))  # (WebGL reads both index types)
+    # uint16 indices below 65535 only: WebGL 2 restarts the primitive at index 65535 of a uint16 buffer
+    pack.add("faces", F.astype(np.uint16 if n <= 65535 else np.uint32))
     names = [f.name for f in scene.fields]
     fields = [_field(pack, i, field, n) for i, field in enumerate(scene.fields)]
     for key, tracks in scene.tracks.items():

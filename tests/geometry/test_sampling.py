@@ -269,3 +269,8 @@ def test_decimate_without_the_map_has_the_same_faces():
     assert np.abs(a.V - b.V).max() < 1e-2 * np.ptp(a.V)
     with pytest.raises(o3dheat.MeshError, match="vertex_map"):
         decimate(m, 0.5, vertex_map="no")
+    with pytest.raises(o3dheat.MeshError, match="vertex_map"):  # checked on the paths that remove nothing too
+        decimate(m, target_faces=10**6, vertex_map="no")
+    assert decimate(m, 0.0, vertex_map=False).vertex_map is None  # no map asked for: none, even of nothing removed
+    assert decimate(m, target_faces=10**6, vertex_map=False).vertex_map is None
+    assert decimate(m, 0.0).vertex_map.tolist() == list(range(len(m.vertex.positions)))

@@ -471,9 +471,23 @@ def test_the_data_deflated_in_pieces_inflate_in_python_and_in_the_browser(scenes
         page.close()
 
 
-def test_faces_are_16_bit_up_to_65536_vertices_and_32_bit_beyond(browser, tmp_path):
-    """The index type follows the mesh's size (WebGL reads both): a 72k-vertex sphere's page has
-    uint32 faces, draws, and counts as Python does."""
+def test_faces_are_16_bit_up_to_65535_vertices_and_32_bit_beyond(browser, tmp_path):
+    """The index type follows the mesh's size: uint16 only below index 65535 (WebGL 2 restarts the
+    primitive at 65535 in a uint16 index buffer: a mesh of exactly 65,536 vertices lost triangles);
+    a 72k-vertex sphere's page has uint32 faces, draws, and counts as Python does."""
+    from o3dheat.topology import CriticalPoints
+
+    for count, kind in ((65535, "Uint16Array"), (65536, "Uint32Array")):
+        side = 256
+        g = np.arange(side * side).reshape(side, side)[: (count + side - 1) // side]
+        Vg = np.c_[np.indices(g.shape).reshape(2, -1).T, np.zeros(g.size)].astype(np.float64)[:count]
+        quads = np.c_[g[:-1, :-1].ravel(), g[1:, :-1].ravel(), g[1:, 1:].ravel(), g[:-1, 1:].ravel()]
+        Fg = np.r_[quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]
+        Fg = Fg[(Fg < count).all(axis=1)]
+        e = np.zeros(0, np.int64)
+        cp = CriticalPoints(e, e, e, e, count)
+        grid = Scene(Vg, Fg, (ScaleField("x", Vg[:, :1], np.ones(1), (cp,)),))
+        assert decoded(page_html(grid))[0]["layout"]["faces"][2] == kind
     m = o3d.geometry.TriangleMesh.create_sphere(1.0, 190)
     V, F = arrays(m)
     assert len(V) > 65536

@@ -123,6 +123,10 @@ def test_the_decimated_copy_is_made_beside_the_flow_and_its_errors_reach_the_cal
     assert {kind for kind, _ in seen} == {"decimate", "flow"}
     where = dict(seen)
     assert where["decimate"].startswith("o3dheat-surface") and where["flow"] == threading.current_thread().name
+    seen.clear()
+    with o3dheat.parallel.threads(1):  # one thread asked for: everything in the calling thread
+        build((V, F), V[:, 2], [0.01, 0.1], Recipe(max_faces=1000, tracks=False))
+    assert dict(seen)["decimate"] == threading.current_thread().name
 
     def failing(*args, **kwargs):
         raise MeshError("decimate: no luck")
