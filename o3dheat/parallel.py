@@ -29,7 +29,7 @@ from typing import Any
 
 from o3dheat.errors import MeshError
 
-__all__ = ["CHUNK", "background", "blas_one_thread", "get_threads", "row_parts", "run", "threads"]
+__all__ = ["CHUNK", "aside", "background", "blas_one_thread", "get_threads", "row_parts", "run", "threads"]
 
 #: most rows per part of a row-parallel loop (:func:`row_parts`; the parts depend on the number of
 #: rows only, so sums do not depend on the threads)
@@ -275,11 +275,35 @@ def background(fn: Callable[..., Any], *args: Any) -> Future:
     >>> background(sum, [1, 2, 3]).result()
     6
     """
-    from concurrent.futures import Future
-
     pool = _pool() if get_threads() > 1 and not threading.current_thread().name.startswith(_PREFIX) else None
     if pool is not None:
         return pool.submit(fn, *args)
+    return _at_once(fn, args)
+
+
+def aside(fn: Callable[..., Any], *args: Any, name: str = "o3dheat-aside") -> Future:
+    """``fn(*args)`` started on a thread of its own (named ``name``), while the caller goes on: a
+    ``concurrent.futures.Future``, as :func:`background` gives, for longer work that would hold one
+    of the pool's threads while the caller's :func:`run` needs them all (a decimation beside a
+    flow). With one thread (:func:`get_threads`) it runs at once, in the calling thread.
+
+    Examples
+    --------
+    >>> from o3dheat.parallel import aside
+    >>> aside(sum, [1, 2, 3]).result()
+    6
+    """
+    if get_threads() == 1:
+        return _at_once(fn, args)
+    pool = ThreadPoolExecutor(1, thread_name_prefix=name)
+    try:
+        return pool.submit(fn, *args)
+    finally:
+        pool.shutdown(wait=False)  # the thread ends with its one task
+
+
+def _at_once(fn, args):
+    """A finished Future of ``fn(*args)``, run in the calling thread (its exception kept for ``result()``)."""
     done = Future()
     try:
         done.set_result(fn(*args))

@@ -57,7 +57,10 @@ class TransferMap:
     def __call__(self, values: ArrayLike) -> np.ndarray:
         """The PL function of ``values`` (one row per source vertex) at the target points:
         (p,) for (r,) values, (p, c) for (r, c)."""
-        vals = checks.field(values, self.sources, "values (one row per source vertex)")
+        return self._gather(checks.field(values, self.sources, "values (one row per source vertex)"))
+
+    def _gather(self, vals):
+        """The move of checked values (``checks.field``)."""
         if vals.ndim == 1:
             return np.einsum("pk,pk->p", self.weights, vals[self.corners])
         return np.einsum("pk,pkc->pc", self.weights, vals[self.corners])
@@ -94,9 +97,9 @@ def transfer(values: ArrayLike, source: MeshLike, target: MeshLike | np.ndarray)
     >>> transfer(V[:, 0], (V, F), np.array([[0.25, 0.25, 1.0]])).round(6).tolist()
     [0.25]
     """
-    V, _ = _surface_of(source)
-    checks.field(values, len(V), "values (one row per source vertex)")  # before the geometry's work
-    return transfer_map(source, target)(values)
+    V, F = _surface_of(source)
+    vals = checks.field(values, len(V), "values (one row per source vertex)")  # before the geometry's work
+    return transfer_map((V, F), target)._gather(vals)
 
 
 def transfer_map(source: MeshLike, target: MeshLike | np.ndarray) -> TransferMap:

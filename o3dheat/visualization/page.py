@@ -158,12 +158,6 @@ def page_html(scene: Scene) -> str:
     return re.sub(r"\{\{(\w+)\}\}", lambda m: parts[m.group(1)], _asset("page.html"))
 
 
-def _gzip(data: bytes, piece: int | None = None) -> bytes:
-    """``data`` as one gzip member (RFC 1952), deflated in pieces on threads (:class:`_Deflater`).
-    Decompresses to ``data`` with any inflater (``gzip.decompress``, ``DecompressionStream``)."""
-    return _Deflater(piece).feed(data).finish()
-
-
 class _Deflater:
     """One gzip member made piece by piece, pigz's way: each piece of ``piece`` bytes (default
     :data:`_PIECE`) fed is deflated (level 1) on :mod:`o3dheat.parallel`'s pool while the caller

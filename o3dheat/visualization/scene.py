@@ -14,7 +14,6 @@ import dataclasses
 import logging
 import time
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -272,14 +271,8 @@ class _Shown:
         if decimating:
             say(f"decimating {len(F):,} faces to {max_faces:,} for the picture, while the fields are computed "
                 "(max_faces, --max-faces; None or 'none' keeps all)")
-        args = (V, F, max_faces if decimating else None)
-        if parallel.get_threads() == 1:  # (parallel.threads(1): everything in the calling thread, now)
-            self.future = Future()
-            self.future.set_result(self._made(*args))
-            return
-        pool = ThreadPoolExecutor(1, thread_name_prefix="o3dheat-surface")
-        self.future = pool.submit(self._made, *args)
-        pool.shutdown(wait=False)  # the thread ends with its one task
+        # a thread of its own: the flow's parallel loops keep the pool's threads
+        self.future = parallel.aside(self._made, V, F, max_faces if decimating else None, name="o3dheat-surface")
 
     @staticmethod
     def _made(V, F, max_faces):
