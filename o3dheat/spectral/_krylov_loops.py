@@ -16,7 +16,7 @@ import numpy as np
 from o3dheat import parallel
 from o3dheat._jit import compiled
 
-__all__ = ["rows", "update", "subtract", "spmm", "part_sums", "project", "scale", "add_outer", "transpose_into"]
+__all__ = ["rows", "update", "subtract", "spmm", "part_sums", "project", "scale", "add_outer", "transpose_into", "assemble"]
 
 
 def rows(fn, n, *args):
@@ -147,3 +147,41 @@ def transpose_into(V, out, a, z):
     for i in range(a, z):
         for k in range(c):
             out[k, i] = V[i, k]
+
+
+def assemble(U, f0T, decay, blocks, pos, bfirst, bcount, coef, ncoef, a, z):
+    """Rows ``a..z`` of the result ``U[i, j] = f0[i, j] decay + Σ_s v_s[i, j] coef[j, s]``: the
+    stored Lanczos vectors ``v_s`` of each column ``j`` times its first ``ncoef[j]`` coefficients,
+    vector ``bfirst[b] + s`` (``s < bcount[b]``) of column ``j`` being ``blocks[b][pos[b, j], s]``
+    (``pos`` -1: not in that block). Summed over rows in runs of 2048 (contiguous, vectorized), each value in the
+    order of the steps, whatever the threads."""
+    c, T = U.shape[1], U.shape[2]
+    R = 2048
+    acc = np.empty((T, R))
+    for r0 in range(a, z, R):
+        m = min(R, z - r0)
+        for j in range(c):
+            fj = f0T[j, r0:r0 + m]
+            for t in range(T):
+                d = decay[t]
+                at = acc[t]
+                for i in range(m):
+                    at[i] = fj[i] * d
+            for b in range(len(blocks)):
+                k = pos[b, j]
+                if k < 0:
+                    continue
+                block = blocks[b]
+                first = bfirst[b]
+                for s in range(min(bcount[b], ncoef[j] - first)):
+                    v = block[k, s, r0:r0 + m]
+                    cs = coef[j, first + s]
+                    for t in range(T):
+                        ct = cs[t]
+                        at = acc[t]
+                        for i in range(m):
+                            at[i] += ct * v[i]
+            for i in range(m):
+                ui = U[r0 + i, j]
+                for t in range(T):
+                    ui[t] = acc[t, i]

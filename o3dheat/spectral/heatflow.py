@@ -79,9 +79,10 @@ __all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "shift_groups", "SPLI
 METHODS = ("spectral", "exact")
 _OPERATORS = object()  # HeatFlow(mesh=_OPERATORS): made by from_operators
 
-#: bytes per vertex allowed for the stored Krylov basis (at least 512 MiB, at most half the free
-#: memory); vectors beyond are regenerated (one more solve each) instead of stored
-BASIS_BYTES_PER_VERTEX = 2048
+#: Lanczos vectors kept per column for the result (2 KiB per vertex and column; four decades of t
+#: take about 85 steps), within half the memory left free by the result and the steps' work
+#: arrays; vectors beyond are regenerated (one more solve each) instead of stored
+KEPT_STEPS = 256
 
 
 class HeatFlow:
@@ -279,10 +280,15 @@ class HeatFlow:
             check_plan(plan, tol, max_steps, times[g], bounded=np.isfinite(top))
         return plans
 
-    def _basis_bytes(self):
+    def _basis_bytes(self, c, T):
+        """Bytes for the stored basis of ``c`` columns (the result has ``T`` times): see :data:`KEPT_STEPS`."""
+        n = len(self._prep.V)
+        want = 8 * n * c * KEPT_STEPS
         free = available_memory()
-        want = max(BASIS_BYTES_PER_VERTEX * len(self._prep.V), 512 * 2**20)
-        return want if free is None else max(min(want, free // 2), 64 * 2**20)
+        if free is None:
+            return want
+        pending = 8 * n * c * (T + 8)  # the result, written after the steps, and the steps' arrays
+        return max(min(want, (free - pending) // 2), 64 * 2**20)
 
     def apply(self, f: FieldLike, t: TimesLike, tol: float | None = None, *, return_report: bool = False,
               max_steps: int = 1000) -> np.ndarray | tuple[np.ndarray, FlowReport]:
@@ -382,7 +388,7 @@ class HeatFlow:
                 t0 = time.perf_counter()
                 shifted = self._factor(gamma, pending)
                 t1 = time.perf_counter()
-                pending = self._next_factor(gammas, gi, shifted)
+                pending = self._next_factor(gammas, gi, shifted, c, T)
                 backend = shifted.factor.backend
                 info = self._propagate(shifted, F, taus[idx], gamma, U[:, :, g[0]:g[-1] + 1], tol, max_steps,
                                        rates, null_rate, None if plan is None else plan.bound)
@@ -405,11 +411,11 @@ class HeatFlow:
         report = FlowReport(tol, times.copy(), estimate, steps, shifts, solves, timings, backend)
         return U, report
 
-    def _next_factor(self, gammas, gi, shifted):
+    def _next_factor(self, gammas, gi, shifted, c, T):
         """The factor of the group after ``gi``, started on another core (None when it is cached,
         there is none, or it would not fit beside the current solves)."""
         if (gi + 1 < len(gammas) and not self._has_factor(gammas[gi + 1])
-                and self._room_for_another(shifted)):
+                and self._room_for_another(shifted, c, T)):
             return parallel.background(Shifted, self._ops, gammas[gi + 1], self.backend)
         return None
 
@@ -419,17 +425,21 @@ class HeatFlow:
         ops = self._ops
         try:
             _, info = propagate(shifted.factor.solve, ops.W, F, taus, gamma, null=(ops.labels, ops.d), tol=tol,
-                                max_steps=max_steps, rates=rates, basis_bytes=self._basis_bytes(),
-                                null_rate=null_rate, out=out, release=shifted.factor.release, bound=bound)
+                                max_steps=max_steps, rates=rates, null_rate=null_rate,
+                                basis_bytes=self._basis_bytes(F.shape[1], out.shape[2]), out=out,
+                                release=shifted.factor.release, bound=bound)
         finally:
             shifted.factor.release()  # its solve workspaces (n x columns each): memory back now
         return info
 
-    def _room_for_another(self, shifted):
-        """Whether a second factorization fits beside the current solves (its transient memory,
-        about three times a factor, and a basis): else the next factor is made after them."""
+    def _room_for_another(self, shifted, c, T):
+        """Whether a second factorization fits beside the current solves (its peak, known from the
+        symbolic analysis, else three times a factor, and a basis): else the next factor is made
+        after them."""
         free = available_memory()
-        return free is None or free > 3 * shifted.nbytes + self._basis_bytes()
+        analysis = self._ops.analysis
+        peak = analysis.nbytes if analysis is not None else 3 * shifted.nbytes
+        return free is None or free > peak + self._basis_bytes(c, T)
 
     def _factor_key(self, gamma):
         return ("heatflow-factor", self._key, gamma, self.backend)

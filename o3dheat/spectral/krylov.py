@@ -183,21 +183,28 @@ def _advance(state, be):
 
 def _result(f0, decay, blocks, coefficients, out):
     """(n, c, T), into ``out`` when given: the null-space part ``f0 ⊗ decay`` plus each column's
-    stored vectors times its coefficients, written once per column (summed in an (n, T) buffer)."""
+    stored vectors times its coefficients, summed row by row in one pass over the stored basis
+    (:func:`o3dheat.spectral._krylov_loops.assemble`)."""
+    from numba.typed import List
+
     n, c = f0.shape
     T = len(decay)
     U = np.empty((n, c, T)) if out is None else out
-    acc, tmp = np.empty((n, T)), np.empty((n, T))
-    for j in range(c):
-        np.multiply.outer(f0[:, j], decay, out=acc)
-        Y = coefficients.get(j)
-        for bcols, first, count, block in blocks:
-            k = np.flatnonzero(bcols == j)
-            z = 0 if Y is None or not len(k) else min(count, len(Y) - first)
-            if z > 0:
-                np.matmul(block[k[0], :z].T, Y[first:first + z], out=tmp)
-                acc += tmp
-        U[:, j, :] = acc
+    M = max([len(Y) for Y in coefficients.values()], default=0)
+    coef = np.zeros((c, max(M, 1), T))
+    ncoef = np.zeros(c, dtype=np.int64)
+    for j, Y in coefficients.items():
+        coef[j, :len(Y)] = Y
+        ncoef[j] = len(Y)
+    # each block holds its vectors written so far (the last may be partly filled)
+    stored = List([block for _, _, _, block in blocks] or [np.zeros((1, 1, n))])
+    pos = np.full((max(len(blocks), 1), c), -1, dtype=np.int64)
+    for b, (cols, _, _, _) in enumerate(blocks):
+        pos[b, cols] = np.arange(len(cols))
+    bfirst = np.array([first for _, first, _, _ in blocks] or [0], dtype=np.int64)
+    bcount = np.array([count for _, _, count, _ in blocks] or [0], dtype=np.int64)
+    loops.rows(loops.assemble, n, U, np.ascontiguousarray(f0.T), np.ascontiguousarray(decay), stored, pos, bfirst,
+               bcount, coef, ncoef)
     return U
 
 

@@ -45,7 +45,7 @@ from numpy.typing import ArrayLike
 from o3dheat import parallel
 from o3dheat.errors import MeshError, OutOfMemory, SolverError
 
-from ._cholmod import Analysis, CholmodFactor, NotPositiveDefinite, factor_nnz, library
+from ._cholmod import ORDERINGS, Analysis, CholmodFactor, NotPositiveDefinite, TooLarge, library
 from .memory import check_memory
 
 __all__ = ["BACKENDS", "Factor", "available_backends", "factorize", "analyze", "Analysis"]
@@ -55,7 +55,7 @@ log = logging.getLogger("o3dheat")
 #: the factorization backends, in the order ``backend="auto"`` tries them
 BACKENDS = ("cholmod", "cholespy", "superlu")
 _WARNED = set()
-ORDERING = "default"  # CHOLMOD tries AMD, then METIS when the fill is high: best or near-best on meshes
+ORDERING = "amd"  # as the binding (o3dheat.spectral._cholmod): METIS costs more than it saves on meshes
 MODES = ("auto", "simplicial", "supernodal")
 SUPERNODAL_MIN_N = 100_000  # "auto": supernodal from here (measured in scripts/bench_spectrum.py)
 
@@ -177,10 +177,14 @@ class Factor:
             release()
 
 
-def analyze(A: sp.spmatrix, mode: str = "auto") -> Analysis | None:
+def analyze(A: sp.spmatrix, mode: str = "auto", ordering: str = "amd") -> Analysis | None:
     """The symbolic analysis of ``A``'s pattern, for :func:`factorize` (``analysis=``) of any
-    matrix with that pattern; None where CHOLMOD's binding is not available (each factorization
-    then analyses its own matrix). Runs without Python's GIL: it can overlap other work.
+    matrix with that pattern, with the factor's size, flops and memory counted before any numeric
+    work; None where CHOLMOD's binding is not available (each factorization then analyses its own
+    matrix). Runs without Python's GIL: it can overlap other work.
+
+    A factor too large for CHOLMOD's 32-bit indices (more than 2³¹ entries) is analysed with its
+    64-bit ones (``wide``); "too large" is never reported as "out of memory".
 
     Parameters
     ----------
@@ -188,27 +192,44 @@ def analyze(A: sp.spmatrix, mode: str = "auto") -> Analysis | None:
         Only its pattern is read.
     mode : {"auto", "simplicial", "supernodal"}
         As for :func:`factorize` (the factorizations must use the same).
+    ordering : {"amd", "metis", "nesdis", "natural"}
+        The fill-reducing ordering. "amd" (what :func:`factorize` uses) is the one that pays on
+        meshes: METIS saves 9-16% of the fill and 35-50% of the flops but costs more time than that
+        (``docs/details/heatflow.md``); "natural" keeps the given order (for tests and measurements).
 
     Returns
     -------
     Analysis or None
+        ``.lnz`` (factor entries), ``.flops``, ``.nbytes`` (the factorization's peak memory),
+        ``.wide``.
+
+    Raises
+    ------
+    MeshError
+        An unknown mode or ordering.
+    OutOfMemory
+        CHOLMOD ran out of memory analysing.
+    SolverError
+        The factor is too large even for CHOLMOD's 64-bit indices (``TooLarge``).
 
     Examples
     --------
     >>> import scipy.sparse as sp, o3dheat.spectral.linalg as la
     >>> a = la.analyze(sp.identity(3, format="csc"))
-    >>> a is None or a.n
-    3
+    >>> a is None or (a.n, a.lnz, a.wide)
+    (3, 3, False)
     """
     mode = _auto_mode(mode, A.shape[0])
+    if ordering not in ORDERINGS:
+        raise MeshError(f"unknown ordering {ordering!r}: use one of {', '.join(map(repr, ORDERINGS))}")
     lib = library()
     if lib is None:
         return None
     try:
-        return Analysis(lib, A, mode)
-    except OutOfMemory:
+        return Analysis(lib, A, mode, ordering)
+    except (OutOfMemory, TooLarge):
         raise
-    except Exception as e:  # noqa: BLE001 - too big for the binding...: each factorization analyses itself
+    except Exception as e:  # noqa: BLE001 - the binding failed: each factorization analyses itself
         log.info("CHOLMOD analysis unavailable (%s): each factorization analyses its own matrix", e)
         return None
 
@@ -226,7 +247,7 @@ def _cholmod(A, mode, analysis=None):
     if lib is not None:
         try:
             return _fallback_solve(CholmodFactor(lib, A, mode, analysis), A, mode)
-        except (OutOfMemory, NotPositiveDefinite):
+        except (OutOfMemory, NotPositiveDefinite, TooLarge):
             raise  # a property of the matrix or of the machine: scikit-sparse would fail alike
         except Exception as e:  # noqa: BLE001 - too big for the int32 interface, another layout...
             _warn_binding(e)
@@ -278,7 +299,10 @@ def _sksparse(A, mode):
                 raise
             except Exception:  # a CHOLMOD built without METIS
                 f = cholesky(A, mode=mode)
-    except (CholmodOutOfMemoryError, CholmodTooLargeError) as e:
+    except CholmodTooLargeError as e:
+        raise TooLarge(f"the factor of the {A.shape[0]} x {A.shape[0]} matrix is too large for CHOLMOD ({e}): "
+                       "use a smaller mesh") from e
+    except CholmodOutOfMemoryError as e:
         raise OutOfMemory(f"CHOLMOD ran out of memory factorizing the {A.shape[0]} x {A.shape[0]} matrix ({e}): "
                           "use a smaller mesh") from e
     return f.solve_A
@@ -301,13 +325,10 @@ def cholespy_bytes(A: sp.spmatrix) -> int:
     lib = library()
     if lib is not None:
         try:
-            a = Analysis(lib, sp.csc_matrix(A), "supernodal")
-            lnz = factor_nnz(a.handle, n)
-            if lnz is not None:
-                return 40 * lnz + 64 * n
-        except OutOfMemory:
+            return 40 * Analysis(lib, sp.csc_matrix(A), "supernodal").lnz + 64 * n
+        except (OutOfMemory, TooLarge):
             raise
-        except Exception:  # noqa: BLE001 - too big for the binding: the bound below
+        except Exception:  # noqa: BLE001 - the binding failed: the bound below
             pass
     return int(80 * n * max(np.log2(max(n, 2)), 1.0) + 64 * n)
 
@@ -372,8 +393,12 @@ def factorize(A: sp.spmatrix, backend: str = "auto", mode: str = "auto", analysi
     ------
     MeshError
         ``A`` is not square or has non-finite entries, or an unknown backend or mode.
+    OutOfMemory
+        The factor would not fit in the memory left (estimated from CHOLMOD's symbolic analysis
+        before any numeric work), or a backend ran out of it; no other backend is tried.
     SolverError
-        The requested backend is missing, or every backend failed.
+        The requested backend is missing, or every backend failed, or the factor is too large
+        even for CHOLMOD's 64-bit indices.
 
     Examples
     --------
@@ -404,7 +429,7 @@ def factorize(A: sp.spmatrix, backend: str = "auto", mode: str = "auto", analysi
                 solve = _cholespy(A)
             else:
                 solve = _superlu(A)
-        except OutOfMemory:
+        except (OutOfMemory, TooLarge):
             raise  # another backend would need as much, and may crash the process (cholespy does)
         except MemoryError as e:
             raise OutOfMemory(f"{name} ran out of memory factorizing the {A.shape[0]} x {A.shape[0]} "

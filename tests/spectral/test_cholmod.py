@@ -11,8 +11,10 @@ from linalg_cases import needs_cholmod, spd_matrix
 
 import o3dheat.spectral._cholmod as ch
 import o3dheat.spectral.linalg as la
+import o3dheat.spectral.memory as mm
 from o3dheat import parallel
-from o3dheat.errors import SolverError
+from o3dheat.errors import MeshError, OutOfMemory, SolverError
+from o3dheat.spectral import fem
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +57,8 @@ def test_the_offsets_table_names_every_field_the_binding_touches():
     import re
 
     src = inspect.getsource(ch)
-    used = set(re.findall(r'_field\([^,]+, "([a-zA-Z_.]+)"\)', src)) | set(re.findall(r'"(common\.[a-z_]+)"', src))
+    code = src.replace(src[src.index("_OFFSETS = {"):src.index("}", src.index("_OFFSETS = {"))], "")
+    used = set(re.findall(r'"((?:common|factor)\.[A-Za-z0-9_]+)"', code))
     assert used == set(ch._OFFSETS)  # every field read or written is in the table, and only those
     for name, (offset, ctype, _) in ch._OFFSETS.items():
         row = re.search(rf"#\s+cholmod_{re.escape(name)}\s+\S+( \*)?\s+(\d+)", src)
@@ -174,3 +177,95 @@ def test_scikit_sparse_when_the_binding_is_unavailable(spd, monkeypatch):
         la.factorize(sp.diags([1.0, 0.0, 2.0], format="csc"), backend="cholmod")
 
 
+
+
+def _grid(m):
+    """The 5-point Laplacian of an m x m grid (+ identity), in natural order."""
+    T = sp.diags([-np.ones(m - 1), 4 * np.ones(m), -np.ones(m - 1)], [-1, 0, 1])
+    S = sp.diags([-np.ones(m - 1), -np.ones(m - 1)], [-1, 1])
+    return sp.csc_matrix(sp.kron(sp.identity(m), T) + sp.kron(S, sp.identity(m)) + sp.identity(m * m))
+
+
+@needs_cholmod
+def test_a_factor_too_large_for_32_bit_indices_is_analysed_with_64_bit_ones(monkeypatch):
+    """Issue 35: a 1400² grid in natural order has a factor of 2.74e9 entries (> 2³¹): the 32-bit
+    analysis says "too large", the 64-bit one counts it, and the factorization is refused by the
+    memory estimate made from that count (never "out of memory" from CHOLMOD's 32-bit failure)."""
+    _bound_or_skip()
+    m = 1400
+    A = _grid(m)
+    a = la.analyze(A, ordering="natural")
+    assert a.wide and a.ordering == "natural"
+    n = m * m
+    assert m * (n - m) <= a.lnz <= (m + 1) * n  # the band fills: about m entries per column
+    assert a.lnz > 2**31
+    assert a.nbytes >= 16 * a.lnz  # 8-byte values and 8-byte indices
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": 32 * 2**30})
+    with pytest.raises(OutOfMemory, match=r"Cholesky factor of 1960000 x 1960000 \(2744\d+ nonzeros\) needs about 4\d\.\d\d GiB"):
+        la.factorize(A, analysis=a)
+    assert not la.analyze(A).wide  # AMD: a factor of about 1e8 entries, 32-bit
+
+
+@needs_cholmod
+def test_too_large_is_said_so_when_64_bit_indices_are_missing(monkeypatch):
+    lib = _bound_or_skip()
+    monkeypatch.setattr(lib, "wide_api", lambda: None)
+    with pytest.raises(ch.TooLarge, match="too large for CHOLMOD's 32-bit indices.*64-bit interface is unavailable"):
+        la.analyze(_grid(1400), ordering="natural")
+
+
+@needs_cholmod
+@pytest.mark.parametrize("wide", [False, True])
+@pytest.mark.parametrize("mode", ["simplicial", "supernodal"])
+def test_the_factor_memory_estimate_is_within_25_percent_above_cholmods_peak(mode, wide):
+    """The estimate made from the symbolic analysis, against CHOLMOD's own count of its peak
+    (analysis, factorization and conversion): over, never under, by at most 25%."""
+    from conftest import icosphere, irregular
+
+    lib = _bound_or_skip()
+    api = lib.wide_api() if wide else lib
+    assert api is not None and api.wide == wide
+    for V, F in (irregular(), icosphere(5), _bunny_like()):
+        L, B = fem.stiffness_matrix((V, F)), fem.mass_matrix((V, F))
+        A = sp.csc_matrix(B + 0.01 * L)
+        estimate = ch.Analysis(api, A, mode).nbytes
+        peak = ch.CholmodFactor(api, A, mode).peak_bytes
+        assert peak <= estimate <= 1.25 * peak, (len(V), estimate, peak)
+
+
+def _bunny_like():
+    """The embedded bunny, decimated (an adaptive, irregular sampling)."""
+    from o3dheat.geometry.sampling import decimate
+    from o3dheat.io import default_mesh
+
+    return decimate(default_mesh()[0], 0.5).arrays
+
+
+@needs_cholmod
+def test_factorizations_use_amd_and_report_fill_and_flops(spd):
+    _bound_or_skip()
+    amd, natural = la.analyze(spd), la.analyze(spd, ordering="natural")
+    assert amd.ordering == "amd" and 0 < amd.lnz < natural.lnz and 0 < amd.flops < natural.flops
+    metis = la.analyze(spd, ordering="metis")  # METIS where CHOLMOD has it, else CHOLMOD's AMD backup
+    assert metis.lnz > 0 and metis.nbytes > 0
+    with pytest.raises(MeshError, match="unknown ordering"):
+        la.analyze(spd, ordering="best")
+
+
+@needs_cholmod
+@pytest.mark.parametrize("mode", ["simplicial", "supernodal"])
+def test_row_solves_agree_with_cholmods_and_do_not_depend_on_threads_or_columns(spd, mode):
+    f = la.factorize(spd, backend="cholmod", mode=mode)
+    c = 2 * ch.ROW_SOLVE_MIN + 5  # row by row, on up to two threads
+    b = np.random.default_rng(3).standard_normal((spd.shape[0], c))
+    out = {}
+    for t in (1, 2, 3):
+        with parallel.threads(t):
+            out[t] = f.solve(b)
+    np.testing.assert_array_equal(out[2], out[1])
+    np.testing.assert_array_equal(out[3], out[1])
+    with parallel.threads(1):  # the first columns alone give the same bits
+        np.testing.assert_array_equal(f.solve(b[:, :ch.ROW_SOLVE_MIN]), out[1][:, :ch.ROW_SOLVE_MIN])
+    cholmods = np.column_stack([f.solve(b[:, j:j + 4]) for j in range(0, c, 4)])  # CHOLMOD's solve
+    np.testing.assert_allclose(out[1], cholmods, rtol=1e-11, atol=1e-13)
+    np.testing.assert_allclose(spd @ out[1], b, rtol=1e-9, atol=1e-9)
