@@ -170,3 +170,26 @@ def test_view_saves_refuses_and_shows_inline(tmp_path):
     assert v.times.tolist() == [0.0, 0.1] and "View(mesh: " in repr(v)
     with pytest.raises(o3dheat.MeshError, match="unknown option"):
         o3dheat.view((V, F), colour="red")
+
+
+def test_a_large_mesh_gets_its_grids_from_a_decimated_copy_and_says_so(monkeypatch):
+    """Issue 35: above 2 x GRID_FACES faces the exact flow's default grids take λ_2 and λ_k from a
+    copy decimated to GRID_FACES faces (the mesh's own k-eigenpair solve cost far more than the
+    flow at 200k vertices and does not fit at 10M); the labels and the progress say so."""
+    import o3dheat.visualization.scene as scene
+    from o3dheat.geometry.sampling import decimate
+
+    monkeypatch.setattr(scene, "GRID_FACES", 600)
+    V, F = torus(1.0, 0.4, 40, 20)  # 1600 faces
+    said = []
+    s = build((V, F), recipe=Recipe(k=30, tracks=False), echo=said.append)
+    copy = decimate((V, F), target_faces=600, vertex_map=False).arrays
+    K = o3dheat.HeatKernel(o3dheat.eigensolve(copy, k=30))
+    log, paper = s.fields
+    assert np.allclose(log.times, K.scales(20, grid="log")) and np.allclose(paper.times, K.scales(10))
+    assert f"of a copy decimated to {len(copy[1]):,} faces" in log.label and "λ_30" in paper.label
+    assert any("copy decimated" in line for line in said)
+    own = o3dheat.HeatKernel(o3dheat.eigensolve((V, F), k=30))
+    assert np.allclose(paper.times, own.scales(10), rtol=0.3)  # nearly the same scales, even on 300 vertices
+    small = build((V, F), recipe=Recipe(k=30, tracks=False, method="spectral"))  # the spectral method: its own
+    assert np.allclose(small.fields[1].times, own.scales(10))

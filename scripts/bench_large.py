@@ -1,0 +1,251 @@
+#!/usr/bin/env python
+"""Benchmark: full-size scans end to end on one machine (10M vertices by default), each stage's
+time and memory.
+
+Meshes, made here (each in its own process, which then runs every stage):
+
+* ``scan``: the embedded bunny, Loop-subdivided once, quadric-decimated to ``n / 4^s`` vertices
+  (an adaptive sampling), Loop-subdivided ``s`` times to about ``n`` vertices, and displaced
+  along the normals by Gaussian noise of 0.2 mean edge lengths (seed 0): a scan's roughness at
+  its sampling scale;
+* ``uniform``: a torus sampled uniformly (``scripts/bench_spectrum.torus``).
+
+Stages: write the mesh to a binary PLY (set-up, not counted in the total), read it back
+(``o3dheat.io.read_mesh``), the scales (λ_2 and λ_100 of a copy decimated to
+``o3dheat.visualization.scene.GRID_FACES`` faces, as ``o3dheat view`` gets them: the mesh's own
+eigensolve would not fit), ``heat_flow`` of the noisy height (0.1 of its range, seed 0) on the
+paper's 10 scales and on 20 log scales (one HeatFlow: operators once), critical points at every
+one of the 30 scales, the tracks of both grids, then the command ``o3dheat view`` (defaults: it
+decimates the page, says so, and computes its own flow and scales) and ``o3dheat figure``, each
+in a process of its own, and last the k = 100 eigensolve (refused up front with its estimate, or
+run). For each stage: seconds, the largest resident set size during the stage (sampled every
+20 ms), and for the commands their own peak (``wait4``'s ``ru_maxrss``).
+
+    .venv/bin/python scripts/bench_large.py                       # scan and uniform, 10M vertices
+    .venv/bin/python scripts/bench_large.py --sizes 1000000       # a quicker check of the same stages
+    .venv/bin/python scripts/bench_large.py --meshes scan --no-eigensolve
+
+Prints a Markdown table per mesh, then one line each: the total time (set-up excluded) and the
+process' peak memory. Targets (issue 35): every mesh within 16 GB peak, the whole run within
+15 minutes per mesh.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from bench_spectrum import torus  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+O3DHEAT = str(Path(sys.executable).parent / "o3dheat")
+
+
+def scan(n, seed=0):
+    """About n vertices: the bunny subdivided, decimated, subdivided again and displaced (see the module notes)."""
+    import fast_simplification
+    import open3d as o3d
+
+    from o3dheat.io import default_mesh
+
+    s = 0
+    while n / 4**s > 100_000:
+        s += 1
+    base = default_mesh()[0].to_legacy().subdivide_loop(1)
+    V, F = np.asarray(base.vertices), np.asarray(base.triangles, np.int32)
+    V, F = fast_simplification.simplify(V, F, target_count=int(2 * n / 4**s))
+    leg = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(np.asarray(V, np.float64)),
+                                    o3d.utility.Vector3iVector(np.asarray(F, np.int32)))
+    if s:
+        leg = leg.subdivide_loop(s)
+    V, F = np.asarray(leg.vertices, np.float64), np.asarray(leg.triangles, np.int64)
+    del leg
+    N = np.zeros_like(V)
+    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    for k in range(3):
+        np.add.at(N, F[:, k], cross)
+    N /= np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
+    edge = float(np.mean(np.linalg.norm(V[F[:, 1]] - V[F[:, 0]], axis=1)))
+    V += (0.2 * edge * np.random.default_rng(seed).standard_normal(len(V)))[:, None] * N
+    return V, F
+
+
+class Stages:
+    """Each stage's seconds and peak resident memory (sampled every 20 ms)."""
+
+    def __init__(self):
+        self.rows = []
+        self._page = os.sysconf("SC_PAGE_SIZE")
+        self._peak = 0
+        self._stop = False
+        threading.Thread(target=self._sample, daemon=True).start()
+
+    def _rss(self):
+        with open("/proc/self/statm") as fh:
+            return int(fh.read().split()[1]) * self._page
+
+    def _sample(self):
+        while not self._stop:
+            self._peak = max(self._peak, self._rss())
+            time.sleep(0.02)
+
+    def run(self, name, fn, *args):
+        self._peak = self._rss()
+        t0 = time.perf_counter()
+        try:
+            out = fn(*args)
+            note = ""
+        except Exception as e:  # noqa: BLE001 - a refusal or a failure is a result of the benchmark
+            out, note = None, f"{type(e).__name__}: {e}"
+        seconds = time.perf_counter() - t0
+        peak = max(self._peak, self._rss())
+        if isinstance(out, dict):  # a command's own numbers
+            note, peak = out.get("note", ""), out.get("peak", peak)
+        self.rows.append({"stage": name, "s": seconds, "peak": peak, "note": note})
+        print(f"  {name}: {seconds:.1f} s, peak {peak / 2**30:.2f} GiB {note}", file=sys.stderr, flush=True)
+        return out
+
+
+def command(args):
+    """Run an o3dheat command; its own peak memory (ru_maxrss of the child) and the last lines it printed."""
+    p = subprocess.Popen([O3DHEAT, *args], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    out = p.stdout.read()
+    _, status, usage = os.wait4(p.pid, 0)
+    p.returncode = os.waitstatus_to_exitcode(status)
+    lines = [line for line in out.splitlines() if line.strip()]
+    said = [line.strip() for line in lines if "decimat" in line or "scales" in line][:3]
+    note = f"exit {p.returncode}; " + " | ".join(said or lines[-2:])
+    return {"peak": usage.ru_maxrss * 1024, "note": note[:400]}
+
+
+def child(kind, n, folder, eigensolve):
+    import o3dheat
+    from o3dheat.geometry.sampling import decimate
+    from o3dheat.topology import Surface, critical_points, track_critical_points
+    from o3dheat.visualization.scene import GRID_FACES
+
+    o3dheat.heat_flow(o3dheat.io.default_mesh()[0], np.arange(28088.0), [1e-3, 1e-2])  # numba's cache, imports
+    st = Stages()
+    ply = Path(folder) / f"{kind}.ply"
+
+    def make():
+        import open3d as o3d
+
+        V, F = scan(n) if kind == "scan" else torus(n)
+        mesh = o3d.t.geometry.TriangleMesh()
+        mesh.vertex.positions = o3d.core.Tensor(V)
+        mesh.triangle.indices = o3d.core.Tensor(F)
+        o3dheat.io.write_mesh(ply, mesh, overwrite=True)
+        return len(V), len(F)
+
+    nv, nf = st.run("make and write the mesh (set-up)", make)
+    print(f"{kind}: {nv:,} vertices, {nf:,} faces", file=sys.stderr, flush=True)
+    mesh = st.run("read the PLY", o3dheat.io.read_mesh, ply)
+    V = mesh.vertex.positions.numpy().astype(np.float64)
+    F = mesh.triangle.indices.numpy().astype(np.int64)
+    del mesh
+    axis = int(np.argmax(np.ptp(V, axis=0)))
+    f = V[:, axis] + 0.1 * np.ptp(V[:, axis]) * np.random.default_rng(0).standard_normal(len(V))
+
+    def scales():
+        K = o3dheat.HeatKernel(o3dheat.eigensolve(decimate((V, F), target_faces=GRID_FACES, vertex_map=False).arrays,
+                                                  k=100))
+        return K.scales(10), K.scales(20, grid="log")
+
+    paper, log = st.run(f"scales: λ_2, λ_100 of a {GRID_FACES:,}-face copy", scales)
+    flow = o3dheat.HeatFlow((V, F))
+    info = {}
+
+    def smooth(t, name):
+        out, rep = flow.apply(f, t, return_report=True)
+        info[name] = f"{rep.solves} solves, {len(rep.shifts)} shifts, estimate <= {rep.estimate.max():.1e}"
+        return out
+
+    P = st.run("heat_flow, paper's 10 scales", smooth, paper, "paper")
+    st.rows[-1]["note"] = info.get("paper", st.rows[-1]["note"])
+    G = st.run("heat_flow, 20 log scales", smooth, log, "log")
+    st.rows[-1]["note"] = info.get("log", st.rows[-1]["note"])
+    flow = None  # its factors' memory back
+    S = st.run("surface (topology tables)", Surface.from_faces, len(V), F, V)
+
+    def critical():
+        from o3dheat import parallel
+
+        cols = [P[:, j] for j in range(P.shape[1])] + [G[:, j] for j in range(G.shape[1])]
+        return parallel.run(lambda c: critical_points(S, c), [(c,) for c in cols])
+
+    cps = st.run("critical points at 30 scales", critical)
+    if cps is not None:
+        st.rows[-1]["note"] = f"first {cps[0].counts}, last {cps[-1].counts}"
+
+    def tracks():
+        a = track_critical_points(S, P, paper, critical=tuple(cps[:10]))
+        b = track_critical_points(S, G, log, critical=tuple(cps[10:]))
+        return f"{len(a):,} + {len(b):,} tracks"
+
+    said = st.run("tracks of both grids", tracks)
+    if isinstance(said, str):
+        st.rows[-1]["note"] = said
+    P = G = S = cps = None  # memory back before the commands run
+    st.run("o3dheat view (a process)", command, ["view", str(ply), "-o", str(Path(folder) / f"{kind}.html"),
+                                                  "--overwrite"])
+    st.run("o3dheat figure (a process)", command, ["figure", str(ply), "-o", str(Path(folder) / f"{kind}-figures"),
+                                                    "--overwrite"])
+    if eigensolve:
+        def eig():
+            s = o3dheat.eigensolve((V, F), k=100)
+            return {"note": f"ran: λ_100 = {s.eigenvalues[-1]:.6g}"}
+
+        st.run("eigensolve k = 100", eig)
+    st._stop = True
+    print(json.dumps({"kind": kind, "n": nv, "faces": nf, "rows": st.rows,
+                      "maxrss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", default="10000000", help="vertices, comma-separated (default: 10000000)")
+    ap.add_argument("--meshes", default="scan,uniform")
+    ap.add_argument("--no-eigensolve", action="store_true", help="skip the k = 100 eigensolve")
+    ap.add_argument("--keep", default=None, help="folder for the meshes, pages and figures (default: temporary)")
+    ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.child:
+        child(a.child[0], int(a.child[1]), a.child[2], not a.no_eigensolve)
+        return
+    folder = a.keep or tempfile.mkdtemp(prefix="o3dheat-large-")
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    for n in [int(s) for s in a.sizes.split(",")]:
+        for kind in a.meshes.split(","):
+            t0 = time.perf_counter()
+            cmd = [sys.executable, __file__, "--child", kind, str(n), folder] + (["--no-eigensolve"] * a.no_eigensolve)
+            p = subprocess.run(cmd, stdout=subprocess.PIPE, text=True)
+            wall = time.perf_counter() - t0
+            lines = [line for line in p.stdout.splitlines() if line.startswith("{")]
+            if p.returncode or not lines:
+                print(f"\n{kind} at {n:,}: the process failed (exit {p.returncode}) after {wall:.0f} s")
+                continue
+            r = json.loads(lines[-1])
+            print(f"\n### {kind}: {r['n']:,} vertices, {r['faces']:,} faces\n")
+            print("| stage | s | peak GiB | |\n|---|---|---|---|")
+            for row in r["rows"]:
+                print(f"| {row['stage']} | {row['s']:.1f} | {row['peak'] / 2**30:.2f} | {row['note']} |")
+            total = sum(row["s"] for row in r["rows"][1:])
+            print(f"\ntotal (set-up excluded): {total / 60:.1f} min; the process' peak: {r['maxrss'] / 2**30:.2f} GiB; "
+                  f"the commands' peaks are in their rows")
+    print(f"\n(meshes, pages and figures in {folder})")
+
+
+if __name__ == "__main__":
+    main()
