@@ -429,10 +429,9 @@ def tables(stage, results):
     print("|" + "---|" * (head.count("|") - 1))
     for k, r in rows:
         kind, size = k[1], k[2]
-        extra = {"heat": f" {k[3]} | {10 if k[3] == 'paper' else 20} | {k[4]} |", "decimate": f" | {k[3]} |"}
         if "error" in r:
-            lead = f"| {kind} | {size} |" + extra.get(stage, "")
-            print(f"{lead} {r['error'][:120]} |")
+            lead = {"heat": f" {k[3]} | {10 if k[3] == 'paper' else 20} | {k[4]} |", "decimate": f" | {k[3]} |"}
+            print(f"| {kind} | {size} |{lead.get(stage, '')} {r['error'][:120]} |")
             continue
         n, m = r["n"], r.get("measured")
         both = f"{mib(m)} ({mib(r.get('sampled'))} / {mib(r.get('maxrss'))})"
