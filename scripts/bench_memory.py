@@ -182,8 +182,9 @@ def child(job):
 
         def recording(*args, **kw):  # each shift group's steps and basis budget
             U, info = propagate(*args, **kw)
-            groups.append({"times": len(args[3]), "max_steps": int(info.steps.max()), "sum_steps": int(info.steps.sum()),
-                           "budget": kw.get("basis_bytes"), "replayed": int(getattr(info, "replayed", 0))})
+            groups.append({"times": len(args[3]), "max_steps": int(info.steps.max()),
+                           "sum_steps": int(info.steps.sum()), "budget": kw.get("basis_bytes"),
+                           "replayed": int(getattr(info, "replayed", 0))})
             return U, info
 
         hf.propagate = recording
@@ -374,16 +375,15 @@ def main():
             for size in sizes:
                 path = mesh(kind, size)
                 if stage == "heat":
-                    cases = [("paper", 1), ("paper+log", 1)] + ([("paper", 8), ("paper", 32)] if size == 1_000_000 else [])
-                    for grid, c in cases:
-                        key = (stage, kind, size, grid, c)
-                        why = skip(stage, kind, size)
-                        r = {"error": why, "wall": 0.0} if why else py_job(
-                            {"job": "heat", "path": str(path), "times": str(times(kind)), "grid": grid, "fields": c}, cap)
-                        record(key, r | {"factor_estimate": factor_estimate(kind, size)})
+                    more = [("paper", 8), ("paper", 32)] if size == 1_000_000 else []
+                    for grid, c in [("paper", 1), ("paper+log", 1), *more]:
+                        job = {"job": "heat", "path": str(path), "times": str(times(kind)), "grid": grid, "fields": c}
+                        r = py_job(job, cap) | {"factor_estimate": factor_estimate(kind, size)}
+                        record((stage, kind, size, grid, c), r)
                 elif stage == "decimate":
                     for vmap in (True, False):
-                        record((stage, kind, size, vmap), py_job({"job": stage, "path": str(path), "vertex_map": vmap}, cap))
+                        job = {"job": stage, "path": str(path), "vertex_map": vmap}
+                        record((stage, kind, size, vmap), py_job(job, cap))
                 elif stage == "page":
                     why = skip(stage, kind, size)
                     if why:
@@ -400,9 +400,11 @@ def main():
                     record((stage, kind, size), r | {"n": len(z["V"]), "faces": len(z["F"]), "times": t, "bare": bare})
                 else:
                     why = skip(stage, kind, size)
-                    record((stage, kind, size), {"error": why, "wall": 0.0} if why else py_job({"job": stage, "path": str(path)}, cap))
+                    r = {"error": why, "wall": 0.0} if why else py_job({"job": stage, "path": str(path)}, cap)
+                    record((stage, kind, size), r)
         tables(stage, results)
-    print(f"\nmachine: {os.cpu_count()} cores, {os.sysconf('SC_PHYS_PAGES') * os.sysconf('SC_PAGE_SIZE') / 2**30:.0f} GiB; "
+    ram = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") / 2**30
+    print(f"\nmachine: {os.cpu_count()} cores, {ram:.0f} GiB; "
           f"address-space limit {args.cap_gib:g} GiB per case; python {sys.version.split()[0]}; "
           f"date {time.strftime('%Y-%m-%d')}; whole run {time.perf_counter() - wall0:.0f} s")
 
@@ -412,8 +414,9 @@ def tables(stage, results):
     rows = [(k, r) for k, r in results.items() if k[0] == stage]
     fails = [(k, r["error"]) for k, r in rows if "error" in r]
     head = {
-        "factor": "| mesh | n | faces | lnz | xsize | flops | estimate a.nbytes MiB | measured MiB (sampled / maxrss) | "
-                  "estimate / measured | CHOLMOD peak MiB | CHOLMOD / measured | final f.nbytes MiB | s |",
+        "factor": "| mesh | n | faces | lnz | xsize | flops | estimate a.nbytes MiB | "
+                  "measured MiB (sampled / maxrss) | estimate / measured | CHOLMOD peak MiB | CHOLMOD / measured | "
+                  "final f.nbytes MiB | s |",
         "eigensolve": "| mesh | n | estimate peak_memory(n, 100) MiB | measured MiB (sampled / maxrss) | "
                       "estimate / measured | s (factorize + solve) |",
         "heat": "| mesh | n | grid | T | c | estimate: result + factor + basis MiB | measured MiB (sampled / maxrss) | "
@@ -430,15 +433,15 @@ def tables(stage, results):
     for k, r in rows:
         kind, size = k[1], k[2]
         if "error" in r:
-            lead = {"heat": f" {k[3]} | {10 if k[3] == 'paper' else 20} | {k[4]} |", "decimate": f" | {k[3]} |"}
+            lead = {"heat": f" {k[3]} | {10 if k[3] == 'paper' else 20} | {k[4]} |", "decimate": f" {k[3]} |"}
             print(f"| {kind} | {size} |{lead.get(stage, '')} {r['error'][:120]} |")
             continue
         n, m = r["n"], r.get("measured")
         both = f"{mib(m)} ({mib(r.get('sampled'))} / {mib(r.get('maxrss'))})"
         if stage == "factor":
-            print(f"| {kind} | {n} | {r['faces']} | {r['lnz']} | {r['xsize']} | {r['flops']:.3g} | {mib(r['estimate'])} | "
-                  f"{both} | {ratio(r['estimate'], m)} | {mib(r['cholmod_peak'])} | {ratio(r['cholmod_peak'], m)} | "
-                  f"{mib(r['final'])} | {r['seconds']:.1f} |")
+            print(f"| {kind} | {n} | {r['faces']} | {r['lnz']} | {r['xsize']} | {r['flops']:.3g} | "
+                  f"{mib(r['estimate'])} | {both} | {ratio(r['estimate'], m)} | {mib(r['cholmod_peak'])} | "
+                  f"{ratio(r['cholmod_peak'], m)} | {mib(r['final'])} | {r['seconds']:.1f} |")
         elif stage == "eigensolve":
             tm = r["timings"]
             print(f"| {kind} | {n} | {mib(r['estimate'])} | {both} | {ratio(r['estimate'], m)} | {r['seconds']:.1f} "
@@ -451,15 +454,17 @@ def tables(stage, results):
             fe = r.get("factor_estimate")
             est = result + basis + (fe or 0)
             budgets = [g["budget"] for g in r["groups"] if g["budget"] is not None]
-            print(f"| {kind} | {n} | {k[3]} | {T} | {c} | {mib(est)} | {both} | {ratio(est, m)} | {mib(result)} | {mib(fe)} | "
-                  f"{mib(basis)} | {mib(2 * result)} | {r['solves']} | {steps} ({', '.join(str(g['max_steps']) for g in r['groups'])}) | "
-                  f"{mib(min(budgets)) if budgets else ''} | {sum(g['replayed'] for g in r['groups'])} | {r['seconds']:.1f} |")
+            per = ", ".join(str(g["max_steps"]) for g in r["groups"])
+            print(f"| {kind} | {n} | {k[3]} | {T} | {c} | {mib(est)} | {both} | {ratio(est, m)} | {mib(result)} | "
+                  f"{mib(fe)} | {mib(basis)} | {mib(2 * result)} | {r['solves']} | {steps} ({per}) | "
+                  f"{mib(min(budgets)) if budgets else ''} | {sum(g['replayed'] for g in r['groups'])} | "
+                  f"{r['seconds']:.1f} |")
         elif stage == "decimate":
             print(f"| {kind} | {n} | {r['faces']} | {k[3]} | {both} | {m / r['faces']:.0f} | {r['out_faces']} | "
                   f"{r['seconds']:.1f} |")
         else:
-            print(f"| {kind} | {n} | {r['faces']} | {mib(r['maxrss'])} | {mib(m)} | {m / n:.0f} | {m / r['faces']:.0f} | "
-                  f"{r['wall']:.1f} |")
+            print(f"| {kind} | {n} | {r['faces']} | {mib(r['maxrss'])} | {mib(m)} | {m / n:.0f} | "
+                  f"{m / r['faces']:.0f} | {r['wall']:.1f} |")
     if fails:
         print("\nFailures and skips (full messages):\n")
         for k, e in fails:

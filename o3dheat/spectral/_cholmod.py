@@ -15,11 +15,15 @@ the factor is too large for 32-bit indices (a supernodal factor of more than 2³
 of roughly 27-56M vertices), the analysis is made again with 64-bit indices, before any numeric
 work. "Too large" and "out of memory" are told apart by CHOLMOD's status, never confused.
 
-Ordering: AMD, always (CHOLMOD's default tries METIS after AMD when AMD's flops per factor entry
-exceed 500, which happens on meshes from about 2M vertices). Measured on this project's meshes
-(``docs/details/heatflow.md``): METIS saves 9-16% of the fill and 35-50% of the flops, but takes
-7.9 s to order 1M vertices where AMD takes 0.8 s, and 34 s at 4M: more than it saves in the
-factorization and in every solve of a heat flow or an eigensolve.
+Ordering ("auto"): AMD, then METIS only when AMD's own flop count says that METIS pays, that is
+when the factorization with AMD's ordering would take more than :data:`METIS_FLOPS_PER_ROW` flops
+per row; the ordering with fewer flops is kept. Why (measured, ``docs/details/large.md``): METIS
+orders about 7 µs per row (7.2 s at 1M rows, AMD 0.8 s). On curvature-adaptive meshes (the bunny:
+17k-42k flops per row with AMD from 250k to 4M rows) it saves 35-50% of the flops, less than it
+costs; CHOLMOD's own default, which tries METIS whenever AMD's flops per factor entry exceed 500,
+spent 34 s ordering the 4M bunny to save 4 s. On a uniform torus (160k flops per row with AMD at
+1M) METIS saves 77% of the flops and 41% of the fill: 12.3 s of factorization become 4.0 s, for
+4.9 s more of ordering, and every solve reads 41% less.
 """
 
 from __future__ import annotations
@@ -61,11 +65,19 @@ _PATTERN, _REAL, _DOUBLE, _LOWER, _SYS_A = 0, 1, 0, -1, 0  # CHOLMOD_PATTERN, _R
 _INT, _LONG = 0, 2  # CHOLMOD_INT, CHOLMOD_LONG: Common->itype of cholmod_start, cholmod_l_start
 _OK, _OUT_OF_MEMORY, _TOO_LARGE = 0, -2, -3  # Common->status
 _MODES = {"simplicial": 0, "supernodal": 2}  # Common->supernodal: CHOLMOD_SIMPLICIAL, CHOLMOD_SUPERNODAL
-#: Common->method[0].ordering: CHOLMOD_NATURAL, CHOLMOD_AMD, CHOLMOD_METIS, CHOLMOD_NESDIS
-ORDERINGS = {"natural": 0, "amd": 2, "metis": 3, "nesdis": 4}
+#: Common->method[0].ordering: CHOLMOD_NATURAL, CHOLMOD_AMD, CHOLMOD_METIS, CHOLMOD_NESDIS; "auto": AMD,
+#: then METIS where it pays (module notes)
+ORDERINGS = {"auto": None, "amd": 2, "metis": 3, "nesdis": 4, "natural": 0}
+#: "auto" orders with METIS too when AMD's ordering would take more flops than this per row to
+#: factorize: METIS's extra time (about 7 µs per row) is then below the half of the
+#: factorization (at 10-13 GFlop/s on one core) that it saves (module notes)
+METIS_FLOPS_PER_ROW = 1.2e5
 #: right-hand sides from which a solve runs row by row (:mod:`o3dheat.spectral._substitution`)
-#: rather than through CHOLMOD's solve (measured at 1M rows: CHOLMOD is faster up to 8 columns)
-ROW_SOLVE_MIN = 12
+#: rather than through CHOLMOD's solve, 4 columns per thread (measured per column, relative to one
+#: column, at 20k / 41k / 1M rows: 8 columns 0.45 / 0.69 / 0.46 row by row against CHOLMOD's
+#: 0.44 / 0.42 / 0.33; 16 columns 0.28 / 0.48 / 0.27 against 0.32 / 0.39 / 0.35; 32 columns
+#: 0.16 / 0.34 / 0.19 against 0.34 / 0.40 / 0.33)
+ROW_SOLVE_MIN = 16
 
 # The fields of CHOLMOD's structs that the binding reads or writes, by byte offset, for the CHOLMOD
 # that the scikit-sparse pin of pyproject.toml (0.4.16) builds against: SuiteSparse 5.x (CHOLMOD 3)
@@ -250,7 +262,7 @@ def _self_check(api):
 
 def _common(api, mode, ordering="amd"):
     """A started cholmod_common (a buffer) of ``api``'s width, in the given factorization mode and
-    ordering, messages off."""
+    ordering (AMD for "auto": :func:`_analyze` tries METIS after it), messages off."""
     c = ctypes.create_string_buffer(_COMMON_BYTES)
     if not api.cholmod_start(c):
         raise _BindingError("cholmod_start failed")
@@ -263,8 +275,8 @@ def _common(api, mode, ordering="amd"):
         raise _BindingError(f"unexpected cholmod_common layout ({(bad or ['common.itype'])[0]})")
     _field(address, "common.supernodal").value = _MODES[mode]
     _field(address, "common.print").value = 0  # failures are reported as SolverError, not printed
-    _field(address, "common.nmethods").value = 1  # one ordering, no METIS after it (module notes)
-    _field(address, "common.method0_ordering").value = ORDERINGS[ordering]
+    _field(address, "common.nmethods").value = 1  # one ordering at a time (module notes)
+    _field(address, "common.method0_ordering").value = ORDERINGS[ordering] if ordering != "auto" else ORDERINGS["amd"]
     return c
 
 
@@ -283,15 +295,29 @@ def _sparse(api, A, values=True):
     return S, (p, i, x)
 
 
-def _analyze(api, S, common, n):
-    """``cholmod_analyze``: the handle, or :class:`_TooLarge` / :class:`OutOfMemory` by CHOLMOD's status."""
+def _analyze(api, S, common, n, ordering="amd"):
+    """``(handle, ordering)``: ``cholmod_analyze`` in ``common``'s ordering, or :class:`_TooLarge` /
+    :class:`OutOfMemory` by CHOLMOD's status; with ``ordering="auto"``, then with METIS where AMD's
+    flop count says it pays (:data:`METIS_FLOPS_PER_ROW`), the analysis of fewer flops kept."""
     handle = api.cholmod_analyze(ctypes.byref(S), common)
-    if handle:
-        return handle
-    if _status(common) == _TOO_LARGE:
-        raise _TooLarge(f"the factor of the {n} x {n} matrix is too large for CHOLMOD's "
-                        f"{64 if api.wide else 32}-bit indices")
-    raise OutOfMemory(f"CHOLMOD could not analyze the {n} x {n} matrix (out of memory)")
+    if not handle:
+        if _status(common) == _TOO_LARGE:
+            raise _TooLarge(f"the factor of the {n} x {n} matrix is too large for CHOLMOD's "
+                            f"{64 if api.wide else 32}-bit indices")
+        raise OutOfMemory(f"CHOLMOD could not analyze the {n} x {n} matrix (out of memory)")
+    address = ctypes.addressof(common)
+    flops, lnz = _field(address, "common.fl").value, _field(address, "common.lnz").value
+    if ordering != "auto" or flops <= METIS_FLOPS_PER_ROW * n:
+        return handle, "amd" if ordering == "auto" else ordering
+    _field(address, "common.method0_ordering").value = ORDERINGS["metis"]
+    other = api.cholmod_analyze(ctypes.byref(S), common)
+    better = bool(other) and _field(address, "common.fl").value < flops
+    _free(api, ctypes.c_void_p(other if not better else handle), [(common, None, None, None)], finish=False)
+    _field(address, "common.method0_ordering").value = ORDERINGS["amd"]
+    _field(address, "common.status").value = _OK  # a failed METIS analysis leaves AMD's, kept
+    if not better:  # the common's counts back to the analysis kept
+        _field(address, "common.fl").value, _field(address, "common.lnz").value = flops, lnz
+    return (other, "metis") if better else (handle, "amd")
 
 
 def _wide_or_refuse(api, e):
@@ -329,14 +355,14 @@ def factor_nnz(handle, n, api):
     return int(np.ctypeslib.as_array(ctypes.cast(counts, ctypes.POINTER(ctype)), shape=(n,)).astype(np.int64).sum())
 
 
-def _free(api, handle, contexts):
+def _free(api, handle, contexts, finish=True):
     for c, X, Y, E in contexts:
         for h in (X, Y, E):
             if h:
                 api.cholmod_free_dense(ctypes.byref(h), c)
     if handle.value and contexts:
         api.cholmod_free_factor(ctypes.byref(handle), contexts[0][0])
-    for c, *_ in contexts:
+    for c, *_ in contexts if finish else ():
         api.cholmod_finish(c)
 
 
@@ -345,12 +371,13 @@ class CholmodFactor:
     CHOLMOD's solve on contiguous groups of columns concurrently, each thread with its own
     cholmod_common and workspace (the factor is only read), or, from :data:`ROW_SOLVE_MIN`
     columns, the row-major substitution of :mod:`o3dheat.spectral._substitution` on the factor's
-    own arrays; the result does not depend on the number of threads. A supernodal factor is made
+    own arrays; the result does not depend on the number of threads. ``ordering``: as for
+    :class:`Analysis` (``.ordering``: the one used). A supernodal factor is made
     with the BLAS on one thread (its rounding would otherwise depend on the thread count), then
     converted to a simplicial LLᵀ; a simplicial LDLᵀ is converted too. Freed with the object.
     ``wide``: whether 64-bit indices were needed."""
 
-    def __init__(self, api, A, mode, analysis=None):
+    def __init__(self, api, A, mode, analysis=None, ordering="auto"):
         A = sp.csc_matrix(A)
         if not A.has_sorted_indices:
             A = A.sorted_indices()  # a copy: the caller's arrays are never reordered
@@ -368,15 +395,16 @@ class CholmodFactor:
         self._finalizer = weakref.finalize(self, _free, api, self._handle, self._contexts)
         while True:
             S, keep = _sparse(self._lib, A)
-            self._contexts[:] = [(_common(self._lib, mode), _DENSE_P(), _DENSE_P(), _DENSE_P())]
+            self._contexts[:] = [(_common(self._lib, mode, ordering), _DENSE_P(), _DENSE_P(), _DENSE_P())]
             c = self._contexts[0][0]
             try:
                 if fits:  # the ordering and symbolic factor, made once
+                    self.ordering = analysis.ordering
                     self._handle.value = self._lib.cholmod_copy_factor(analysis.handle, c)  # own common
                     if not self._handle.value:
                         raise OutOfMemory(f"CHOLMOD could not copy the analysis of the {n} x {n} matrix (out of memory)")
                 else:
-                    self._handle.value = _analyze(self._lib, S, c, n)
+                    self._handle.value, self.ordering = _analyze(self._lib, S, c, n, ordering)
                 break
             except _TooLarge as e:
                 self._lib.cholmod_finish(c)
@@ -505,7 +533,9 @@ class Analysis:
     Attributes
     ----------
     n : int
-    mode, ordering : str
+    mode : str
+    ordering : str
+        The ordering used ("amd" or "metis" for "auto", see the module notes).
     lnz : int
         Entries of the Cholesky factor (CHOLMOD's count, from the column counts).
     flops : float
@@ -525,7 +555,7 @@ class Analysis:
     (True, 9)
     """
 
-    def __init__(self, api, A, mode, ordering="amd"):
+    def __init__(self, api, A, mode, ordering="auto"):
         A = sp.csc_matrix(A)
         n = A.shape[0]
         if not A.has_sorted_indices:
@@ -533,12 +563,12 @@ class Analysis:
         if A.nnz >= 2**31 - 1:
             api = _wide_or_refuse(api, _TooLarge(f"the {n} x {n} matrix has more than 2^31 nonzeros"))
         self._indptr, self._indices = A.indptr.copy(), A.indices.copy()
-        self.n, self.mode, self.ordering = n, mode, ordering
+        self.n, self.mode = n, mode
         while True:
             S, keep = _sparse(api, A, values=False)  # CHOLMOD_PATTERN: the values do not matter
             common = _common(api, mode, ordering)
             try:
-                self.handle = _analyze(api, S, common, n)
+                self.handle, self.ordering = _analyze(api, S, common, n, ordering)
                 break
             except _TooLarge as e:
                 api.cholmod_finish(common)

@@ -177,7 +177,7 @@ class Factor:
             release()
 
 
-def analyze(A: sp.spmatrix, mode: str = "auto", ordering: str = "amd") -> Analysis | None:
+def analyze(A: sp.spmatrix, mode: str = "auto", ordering: str = "auto") -> Analysis | None:
     """The symbolic analysis of ``A``'s pattern, for :func:`factorize` (``analysis=``) of any
     matrix with that pattern, with the factor's size, flops and memory counted before any numeric
     work; None where CHOLMOD's binding is not available (each factorization then analyses its own
@@ -192,16 +192,17 @@ def analyze(A: sp.spmatrix, mode: str = "auto", ordering: str = "amd") -> Analys
         Only its pattern is read.
     mode : {"auto", "simplicial", "supernodal"}
         As for :func:`factorize` (the factorizations must use the same).
-    ordering : {"amd", "metis", "nesdis", "natural"}
-        The fill-reducing ordering. "amd" (what :func:`factorize` uses) is the one that pays on
-        meshes: METIS saves 9-16% of the fill and 35-50% of the flops but costs more time than that
-        (``docs/details/heatflow.md``); "natural" keeps the given order (for tests and measurements).
+    ordering : {"auto", "amd", "metis", "nesdis", "natural"}
+        The fill-reducing ordering. "auto" (what :func:`factorize` uses): AMD, then METIS where
+        AMD's own flop count says that METIS's longer ordering pays for itself (uniform meshes of
+        about 1M vertices and more; not curvature-adaptive ones: ``docs/details/large.md``), the
+        one of fewer flops kept; "natural" keeps the given order (for tests and measurements).
 
     Returns
     -------
     Analysis or None
         ``.lnz`` (factor entries), ``.flops``, ``.nbytes`` (the factorization's peak memory),
-        ``.wide``.
+        ``.ordering`` (the one used), ``.wide``.
 
     Raises
     ------

@@ -242,12 +242,22 @@ def _bunny_like():
 
 
 @needs_cholmod
-def test_factorizations_use_amd_and_report_fill_and_flops(spd):
+def test_the_ordering_is_amd_unless_amds_flops_say_metis_pays(spd, monkeypatch):
+    """Issue 35: "auto" is AMD, then METIS when AMD's flops per row exceed METIS_FLOPS_PER_ROW, the
+    ordering of fewer flops kept (the same choice every time); fill and flops reported."""
     _bound_or_skip()
-    amd, natural = la.analyze(spd), la.analyze(spd, ordering="natural")
-    assert amd.ordering == "amd" and 0 < amd.lnz < natural.lnz and 0 < amd.flops < natural.flops
+    auto, amd, natural = la.analyze(spd), la.analyze(spd, ordering="amd"), la.analyze(spd, ordering="natural")
+    assert auto.ordering == "amd" and (auto.lnz, auto.flops) == (amd.lnz, amd.flops)  # a small mesh: AMD
+    assert 0 < amd.lnz < natural.lnz and 0 < amd.flops < natural.flops
     metis = la.analyze(spd, ordering="metis")  # METIS where CHOLMOD has it, else CHOLMOD's AMD backup
     assert metis.lnz > 0 and metis.nbytes > 0
+    monkeypatch.setattr(ch, "METIS_FLOPS_PER_ROW", 0.0)  # METIS always tried
+    tried = [la.analyze(spd) for _ in range(2)]
+    assert tried[0].flops == min(amd.flops, metis.flops) and tried[0].ordering in ("amd", "metis")
+    assert (tried[1].ordering, tried[1].lnz, tried[1].flops) == (tried[0].ordering, tried[0].lnz, tried[0].flops)
+    f = la.factorize(spd, backend="cholmod")  # its own analysis: the same choice
+    b = np.ones((spd.shape[0], 2))
+    np.testing.assert_allclose(spd @ f.solve(b), b, atol=1e-9)
     with pytest.raises(MeshError, match="unknown ordering"):
         la.analyze(spd, ordering="best")
 
