@@ -8,7 +8,9 @@ Meshes, made here (each in its own process, which then runs every stage):
   (an adaptive sampling), Loop-subdivided ``s`` times to about ``n`` vertices, and displaced
   along the normals by Gaussian noise of 0.2 mean edge lengths (seed 0): a scan's roughness at
   its sampling scale;
-* ``uniform``: a torus sampled uniformly (``scripts/bench_spectrum.torus``).
+* ``ellipsoid``: an ellipsoid of axes 1, 0.8, 0.6 sampled uniformly (a cube's faces as grids of
+  equal angles, projected); ``torus``: a torus sampled uniformly (``scripts/bench_spectrum.torus``),
+  whose factor has about twice the fill.
 
 Stages: write the mesh to a binary PLY (set-up, not counted in the total), read it back
 (``o3dheat.io.read_mesh``), the scales (λ_2 and λ_100 of a copy decimated to
@@ -21,7 +23,7 @@ in a process of its own, and last the k = 100 eigensolve (refused up front with 
 run). For each stage: seconds, the largest resident set size during the stage (sampled every
 20 ms), and for the commands their own peak (``wait4``'s ``ru_maxrss``).
 
-    .venv/bin/python scripts/bench_large.py                       # scan and uniform, 10M vertices
+    .venv/bin/python scripts/bench_large.py                       # scan and ellipsoid, 10M vertices
     .venv/bin/python scripts/bench_large.py --sizes 1000000       # a quicker check of the same stages
     .venv/bin/python scripts/bench_large.py --meshes scan --no-eigensolve
 
@@ -79,6 +81,27 @@ def scan(n, seed=0):
     edge = float(np.mean(np.linalg.norm(V[F[:, 1]] - V[F[:, 0]], axis=1)))
     V += (0.2 * edge * np.random.default_rng(seed).standard_normal(len(V)))[:, None] * N
     return V, F
+
+
+def ellipsoid(n, axes=(1.0, 0.8, 0.6)):
+    """About n vertices, uniformly: the six faces of a cube, each an m x m grid of equal angles,
+    projected onto the unit sphere (seams welded), then scaled to the ellipsoid's axes."""
+    m = max(2, int(round(np.sqrt((n - 2) / 6))))
+    u = np.tan(np.linspace(-np.pi / 4, np.pi / 4, m + 1))
+    a, b = np.meshgrid(u, u, indexing="ij")
+    a, b, one = a.ravel(), b.ravel(), np.ones((m + 1) ** 2)
+    quads = np.arange(m * (m + 1)).reshape(m, m + 1)[:, :m].ravel()  # lower-left corner of each cell
+    tri = np.r_[np.c_[quads, quads + m + 1, quads + m + 2], np.c_[quads, quads + m + 2, quads + 1]]
+    V, F = [], []
+    for k, (x, y, z) in enumerate([(one, a, b), (-one, b, a), (a, one, b), (b, -one, a), (a, b, one), (b, a, -one)]):
+        V.append(np.c_[x, y, z])
+        F.append(tri + k * len(one))
+    V, F = np.concatenate(V), np.concatenate(F)
+    V /= np.linalg.norm(V, axis=1)[:, None]
+    key = np.round(V * 2**40).astype(np.int64)  # the seams' copies of a point coincide exactly enough
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    V, F = V[first] * np.asarray(axes), inverse.ravel()[F]
+    return V, F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
 
 
 class Stages:
@@ -142,7 +165,7 @@ def child(kind, n, folder, eigensolve):
     def make():
         import open3d as o3d
 
-        V, F = scan(n) if kind == "scan" else torus(n)
+        V, F = {"scan": scan, "ellipsoid": ellipsoid, "torus": torus}[kind](n)
         mesh = o3d.t.geometry.TriangleMesh()
         mesh.vertex.positions = o3d.core.Tensor(V)
         mesh.triangle.indices = o3d.core.Tensor(F)
@@ -216,7 +239,7 @@ def child(kind, n, folder, eigensolve):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sizes", default="10000000", help="vertices, comma-separated (default: 10000000)")
-    ap.add_argument("--meshes", default="scan,uniform")
+    ap.add_argument("--meshes", default="scan,ellipsoid", help="scan, ellipsoid (uniform), torus (uniform)")
     ap.add_argument("--no-eigensolve", action="store_true", help="skip the k = 100 eigensolve")
     ap.add_argument("--keep", default=None, help="folder for the meshes, pages and figures (default: temporary)")
     ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)

@@ -15,8 +15,8 @@ non-uniform) and its torus (uniform), at 250k, 1M, 2M and 4M vertices, made once
   0.1 x its range (seed 0; c fields: seeds 0..c-1, as scripts/bench_heat.py), t the paper's grid
   (10 times) or paper + log grid (20), computed once per kind from its 250k mesh (``HeatKernel(
   eigensolve(k=100)).scales(10)``, ``grid="log"``) and used at every size; at 1M also 8 and 32
-  fields. Estimate: the sum of its parts, the result ``8 n c T``, the factor's ``a.nbytes`` (of
-  stage factor) and the stored basis ``8 n c s`` (s: the most steps of a column in one shift
+  fields. Estimate: the sum of its parts, the result ``8 n c T``, the factor's ``a.nbytes`` (of the
+  analysis the flow made) and the stored basis ``8 n c s`` (s: the most steps of a column in one shift
   group, recorded by wrapping ``heatflow.propagate``); o3dheat's own check (``2 x 8 n c T``) shown;
 * ``decimate``: ``sampling.decimate((V, F), target_faces=400_000)`` (the page's default; with and
   without the vertex map, the page's call having none); no estimate exists: bytes per input face;
@@ -33,7 +33,8 @@ high-water mark (``ru_maxrss``, reset to the resident size at the start by writi
 ``/proc/self/clear_refs``: no spike missed), each less the resident size at the start; "measured"
 is the larger. A stage at 4M vertices that would run longer than its budget (from the 2M time) is
 skipped and said so. Failures (an exception, a refusal by o3dheat's estimate, a kill) are printed
-with their message; the run goes on. Every result is also appended to ``DIR/results.jsonl``.
+with their message; the run goes on. Every result is also appended to ``DIR/results.jsonl``, with
+the o3dheat commit it measured (``+edits``: files changed since).
 
     .venv/bin/python scripts/bench_memory.py                               # everything: about an hour
     .venv/bin/python scripts/bench_memory.py --sizes 250000 --stages factor,heat
@@ -187,8 +188,16 @@ def child(job):
                            "replayed": int(getattr(info, "replayed", 0))})
             return U, info
 
-        hf.propagate = recording
-        res |= {"T": len(t), "fields": c}
+        class Recording(hf.Shifted):  # the analysis and factor the flow made (its ordering, its size)
+            def __init__(self, ops, gamma, backend):
+                super().__init__(ops, gamma, backend)
+                a = ops.analysis
+                factors.append({"estimate": a.nbytes, "lnz": a.lnz, "ordering": getattr(a, "ordering", ""),
+                                "final": self.nbytes} if a is not None else {"final": self.nbytes})
+
+        factors = []
+        hf.propagate, hf.Shifted = recording, Recording
+        res |= {"T": len(t), "fields": c, "factors": factors}
     gc.collect()
     res |= {"base_rss": status("VmRSS"), "base_vm": status("VmSize"), "room": memory_limits()}
     peak = StagePeak()
@@ -212,7 +221,22 @@ def child(job):
     sampled, maxrss = peak.stop()
     res |= {"seconds": seconds, "sampled": sampled, "maxrss": maxrss if peak.reset else None,
             "measured": max(sampled, maxrss if peak.reset else 0), "vm_peak": status("VmPeak")}
+    if stage == "factor":
+        res["ordering"] = getattr(a, "ordering", "")
     print(json.dumps(res))
+
+
+def code_version():
+    """The commit of the o3dheat measured, "+edits" when its files differ from it."""
+    repo = Path(__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(["git", "-C", str(repo), "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(repo), "status", "--porcelain", "o3dheat"], capture_output=True,
+                               text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head + ("+edits" if dirty else "")
 
 
 def limit(cap):
@@ -304,6 +328,7 @@ def main():
     home.mkdir(parents=True, exist_ok=True)
     log = home / "results.jsonl"
     wall0 = time.perf_counter()
+    version = code_version()
 
     def say(text):
         print(f"[{time.perf_counter() - wall0:6.0f} s] {text}", file=sys.stderr, flush=True)
@@ -342,7 +367,8 @@ def main():
     def record(key, r):
         results[key] = r
         with open(log, "a") as fh:
-            fh.write(json.dumps({"key": key, "cap": cap, "date": time.strftime("%Y-%m-%d %H:%M")} | r) + "\n")
+            fh.write(json.dumps({"key": key, "cap": cap, "code": code_version(),
+                                "date": time.strftime("%Y-%m-%d %H:%M")} | r) + "\n")
         say(f"{key}: " + (r["error"] if "error" in r else f"measured {mib(r.get('measured'))} MiB, {r['wall']:.0f} s"))
 
     def skip(stage, kind, size):
@@ -406,7 +432,10 @@ def main():
     ram = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") / 2**30
     print(f"\nmachine: {os.cpu_count()} cores, {ram:.0f} GiB; "
           f"address-space limit {args.cap_gib:g} GiB per case; python {sys.version.split()[0]}; "
-          f"date {time.strftime('%Y-%m-%d')}; whole run {time.perf_counter() - wall0:.0f} s")
+          f"date {time.strftime('%Y-%m-%d')}; whole run {time.perf_counter() - wall0:.0f} s; o3dheat {version}")
+    if code_version() != version:
+        print(f"\n**o3dheat changed during the run** ({version} -> {code_version()}): the cases measured "
+              "different code (each line of DIR/results.jsonl says which)")
 
 
 def tables(stage, results):
@@ -414,7 +443,7 @@ def tables(stage, results):
     rows = [(k, r) for k, r in results.items() if k[0] == stage]
     fails = [(k, r["error"]) for k, r in rows if "error" in r]
     head = {
-        "factor": "| mesh | n | faces | lnz | xsize | flops | estimate a.nbytes MiB | "
+        "factor": "| mesh | n | faces | lnz (ordering) | xsize | flops | estimate a.nbytes MiB | "
                   "measured MiB (sampled / maxrss) | estimate / measured | CHOLMOD peak MiB | CHOLMOD / measured | "
                   "final f.nbytes MiB | s |",
         "eigensolve": "| mesh | n | estimate peak_memory(n, 100) MiB | measured MiB (sampled / maxrss) | "
@@ -439,7 +468,7 @@ def tables(stage, results):
         n, m = r["n"], r.get("measured")
         both = f"{mib(m)} ({mib(r.get('sampled'))} / {mib(r.get('maxrss'))})"
         if stage == "factor":
-            print(f"| {kind} | {n} | {r['faces']} | {r['lnz']} | {r['xsize']} | {r['flops']:.3g} | "
+            print(f"| {kind} | {n} | {r['faces']} | {r['lnz']} ({r.get('ordering', '')}) | {r['xsize']} | {r['flops']:.3g} | "
                   f"{mib(r['estimate'])} | {both} | {ratio(r['estimate'], m)} | {mib(r['cholmod_peak'])} | "
                   f"{ratio(r['cholmod_peak'], m)} | {mib(r['final'])} | {r['seconds']:.1f} |")
         elif stage == "eigensolve":
@@ -451,7 +480,7 @@ def tables(stage, results):
             result = 8 * n * c * T
             steps = max(g["max_steps"] for g in r["groups"])
             basis = 8 * n * c * steps
-            fe = r.get("factor_estimate")
+            fe = (r.get("factors") or [{}])[0].get("estimate", r.get("factor_estimate"))
             est = result + basis + (fe or 0)
             budgets = [g["budget"] for g in r["groups"] if g["budget"] is not None]
             per = ", ".join(str(g["max_steps"]) for g in r["groups"])

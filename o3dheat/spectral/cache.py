@@ -113,7 +113,11 @@ def memory_cache_max_bytes() -> int:
 
 
 def _nbytes(value):
-    """Bytes held by the arrays and sparse matrices among an object's attributes."""
+    """Bytes an object holds: its own ``nbytes`` where it tells (a factor, the operators), else
+    those of the arrays and sparse matrices among its attributes."""
+    own = getattr(value, "nbytes", None)
+    if isinstance(own, (int, np.integer)) and not isinstance(own, bool):
+        return int(own)
     total = 0
     for v in (vars(value).values() if hasattr(value, "__dict__") else [value]):
         if isinstance(v, np.ndarray):
@@ -155,7 +159,7 @@ class SpectrumCache:
         self.max_entries = max_entries
         self.disk = None
 
-    def get(self, key: Hashable, compute: Callable[[], Any]) -> Any:
+    def get(self, key: Hashable, compute: Callable[[], Any], room: int = 0) -> Any:
         """``compute()``, remembered under ``key``.
 
         Parameters
@@ -164,6 +168,10 @@ class SpectrumCache:
             What identifies the result (e.g. a hash of the geometry and the settings).
         compute : callable
             Called without arguments when ``key`` is not remembered.
+        room : int
+            Bytes ``compute`` is expected to need: the least recently used results are dropped
+            first, until the budget has that much room (a factor of 10M vertices is not made
+            while the cache keeps the last one).
 
         Returns
         -------
@@ -180,9 +188,11 @@ class SpectrumCache:
         if key in entries:
             entries.move_to_end(key)
             return entries[key][0]
+        budget = memory_cache_max_bytes()
+        while entries and room and sum(b for _, b in entries.values()) + room > budget:
+            entries.popitem(last=False)
         value = compute()
         entries[key] = (value, _nbytes(value))
-        budget = memory_cache_max_bytes()
         while len(entries) > 1 and (len(entries) > self.max_entries or sum(b for _, b in entries.values()) > budget):
             entries.popitem(last=False)
         return value
@@ -240,7 +250,7 @@ def clear_cache() -> None:
     SPECTRA.clear()
 
 
-def memoized(key: Hashable, compute: Callable[[], Any]) -> Any:
+def memoized(key: Hashable, compute: Callable[[], Any], room: int = 0) -> Any:
     """``compute()``, remembered under ``key`` among the last results (least recently used first
     out: at most 8 and :func:`memory_cache_max_bytes`, the newest always kept): the one in-memory
     cache of spectra, for meshes and for operators built elsewhere (:data:`SPECTRA`).
@@ -251,6 +261,8 @@ def memoized(key: Hashable, compute: Callable[[], Any]) -> Any:
         What identifies the result (e.g. a hash of the geometry and the settings).
     compute : callable
         Called without arguments when ``key`` is not remembered.
+    room : int
+        Bytes ``compute`` is expected to need (see :meth:`SpectrumCache.get`).
 
     Returns
     -------
@@ -265,7 +277,7 @@ def memoized(key: Hashable, compute: Callable[[], Any]) -> Any:
     >>> len(calls)
     1
     """
-    return SPECTRA.get(key, compute)
+    return SPECTRA.get(key, compute, room)
 
 
 def memoized_has(key: Hashable) -> bool:

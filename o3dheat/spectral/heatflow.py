@@ -192,11 +192,11 @@ class HeatFlow:
         return (f"HeatFlow(n={self.n}, variant={self.variant!r}, normalize={self.normalize!r}, "
                 f"transfer={'yes' if self.transfer is not None else None})")
 
-    def _cached(self, key, compute):
-        """``compute()`` once per key: shared through the in-memory cache, or kept by this
-        HeatFlow alone (``cache=False``)."""
+    def _cached(self, key, compute, room=0):
+        """``compute()`` once per key: shared through the in-memory cache (``room``: the bytes it
+        will need, made room for first), or kept by this HeatFlow alone (``cache=False``)."""
         if self.cache:
-            return memoized(key, compute)
+            return memoized(key, compute, room)
         if key not in self._local:
             self._local[key] = compute()
         return self._local[key]
@@ -394,6 +394,7 @@ class HeatFlow:
                                        rates, null_rate, None if plan is None else plan.bound)
                 t_sol += time.perf_counter() - t1
                 t_fac += t1 - t0
+                shifted = None  # this group's factor: freed before the next is made, unless cached
                 check_converged(info, tol, max_steps, times[idx], self._phi is not None)
                 estimate[:, idx] = info.estimate
                 steps += info.steps
@@ -433,13 +434,14 @@ class HeatFlow:
         return info
 
     def _room_for_another(self, shifted, c, T):
-        """Whether a second factorization fits beside the current solves (its peak, known from the
-        symbolic analysis, else three times a factor, and a basis): else the next factor is made
-        after them."""
+        """Whether a second factorization fits beside the current solves with room to spare (twice
+        its peak, known from the symbolic analysis, else three times a factor, and a basis): else
+        the next factor is made after them, once the current one is freed (and dropped from the
+        cache when it does not fit its budget): a 10M-vertex factor is 5-9 GB."""
         free = available_memory()
         analysis = self._ops.analysis
         peak = analysis.nbytes if analysis is not None else 3 * shifted.nbytes
-        return free is None or free > peak + self._basis_bytes(c, T)
+        return free is None or free > 2 * (peak + self._basis_bytes(c, T))
 
     def _factor_key(self, gamma):
         return ("heatflow-factor", self._key, gamma, self.backend)
@@ -451,8 +453,10 @@ class HeatFlow:
     def _factor(self, gamma, pending=None):
         """The factor of ``W + γL``: cached, or made now (or by ``pending``, a background job)."""
         ops = self._ops
-        return self._cached(self._factor_key(gamma),
-                            (lambda: pending.result()) if pending is not None else (lambda: Shifted(ops, gamma, self.backend)))
+        if pending is not None:
+            return self._cached(self._factor_key(gamma), lambda: pending.result())
+        room = ops.analysis.nbytes if ops.analysis is not None else 0
+        return self._cached(self._factor_key(gamma), lambda: Shifted(ops, gamma, self.backend), room)
 
     def error(self, f: FieldLike, t: TimesLike, tol: float | None = None) -> float | np.ndarray:
         """``ε∞ = ‖f − Φ_t f‖∞ / ‖f‖∞`` of the full kernel (0 when f = 0), like

@@ -224,3 +224,28 @@ def test_a_cache_key_or_entry_that_is_not_a_private_regular_file_is_not_trusted_
     with caplog.at_level("WARNING", logger="o3dheat"):
         assert solve_in_time(tmp_path).timings["cache"] is False
     assert "not a regular file" in caplog.text
+
+
+def test_factors_count_their_own_bytes_and_room_is_made_before_a_new_one(monkeypatch):
+    """Issue 35: a factor in the cache counted 0 bytes (its arrays live in CHOLMOD's memory), so
+    every factor of a flow stayed, whatever the budget; and a new factor was made while the last
+    one was still kept. A factor counts its nbytes now, and ``room`` drops results first."""
+    import o3dheat.spectral.cache as C
+
+    C.clear_cache()
+    V, F = icosphere(4)
+    flow = o3dheat.HeatFlow((V, F))
+    flow.apply(V[:, 0], [1e-4, 1e-3, 1.0, 10.0])  # four decades: two shifts, two factors
+    factors = [(k, b) for k, (v, b) in C.SPECTRA.entries.items() if k[0] == "heatflow-factor"]
+    assert len(factors) == 2 and all(b >= v.nbytes > 0 for (k, b), v in
+                                     zip(factors, [C.SPECTRA.entries[k][0] for k, _ in factors], strict=True))
+    made = []
+
+    class Sized:
+        nbytes = 123
+
+    monkeypatch.setenv("O3DHEAT_MEMORY_CACHE_MB", str(2 * factors[0][1] / 2**20))
+    C.memoized(("other", 1), lambda: made.append(len(C.SPECTRA)) or Sized(), room=2 * factors[0][1])
+    assert made == [0]  # everything dropped before computing: no room was left
+    assert C.SPECTRA.entries[("other", 1)][1] == 123
+    C.clear_cache()
