@@ -72,7 +72,7 @@ class OutOfMemory(SolverError):
 
     Examples
     --------
-    >>> import o3dheat, o3dheat.spectral.memory as mm
+    >>> import o3dheat, o3dheat.memory as mm
     >>> from o3dheat.errors import OutOfMemory
     >>> issubclass(OutOfMemory, o3dheat.SolverError)
     True

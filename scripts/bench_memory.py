@@ -146,7 +146,7 @@ def child(job):
         K = o3dheat.HeatKernel(o3dheat.eigensolve((V, F), k=100))
         np.savez(job["out"], paper=K.scales(10), log=K.scales(10, grid="log"))
         return
-    from o3dheat.spectral.memory import memory_limits
+    from o3dheat.memory import memory_limits
 
     n, stage = len(V), job["job"]
     c = job.get("fields", 1)
@@ -173,7 +173,7 @@ def child(job):
                 "xsize": int(ch._field(a.handle, "factor.xsize").value), "nnz_A": A.nnz}
         lib = ch.library()
     elif stage == "eigensolve":
-        from o3dheat.spectral.memory import peak_memory
+        from o3dheat.memory import peak_memory
 
         res["estimate"] = peak_memory(n, 100)
     elif stage == "heat":

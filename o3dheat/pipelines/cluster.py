@@ -329,7 +329,7 @@ def task_error(e: BaseException) -> str:
     Dask retries a task whose worker died (``distributed.scheduler.allowed-failures`` times), then
     raises ``KilledWorker``, whose text names the task's key and not the cause. o3dheat's
     eigensolves refuse work that a Dask worker's memory limit cannot hold
-    (:func:`o3dheat.spectral.memory.memory_limits`), but other steps, or other processes, can still
+    (:func:`o3dheat.memory.memory_limits`), but other steps, or other processes, can still
     exhaust it.
 
     Examples

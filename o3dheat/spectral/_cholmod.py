@@ -39,9 +39,9 @@ import scipy.sparse as sp
 
 from o3dheat import parallel
 from o3dheat.errors import OutOfMemory, SolverError
+from o3dheat.memory import check_memory
 
 from . import _substitution
-from .memory import check_memory
 
 log = logging.getLogger("o3dheat")
 

@@ -20,10 +20,10 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from o3dheat import parallel
 from o3dheat.errors import ConvergenceError, MeshError, SolverError
+from o3dheat.memory import available_memory, check_memory, peak_memory
 
 from .lanczos import block_lanczos, rayleigh_ritz
-from .linalg import factorize
-from .memory import available_memory, check_memory, peak_memory
+from .linalg import analyze, factorize
 
 log = logging.getLogger("o3dheat")
 
@@ -118,10 +118,10 @@ def _choose_method(method, r, k):
     return method
 
 
-def _solve_arpack(L, B, k, sigma, backend, seed):
+def _solve_arpack(L, B, k, sigma, backend, seed, analysis=None):
     # machine precision: a looser ARPACK tolerance was seen to miss copies of multiple eigenvalues
     t0 = time.perf_counter()
-    fac = factorize(L - sigma * B, backend=backend)
+    fac = factorize(L - sigma * B, backend=backend, analysis=analysis)
     t1 = time.perf_counter()
     n = L.shape[0]
     op = spla.LinearOperator((n, n), matvec=fac.solve, dtype=np.float64)
@@ -137,10 +137,10 @@ def _solve_arpack(L, B, k, sigma, backend, seed):
     return lam, X, fac.backend, t1 - t0, time.perf_counter() - t1
 
 
-def _solve_lanczos(L, B, k, sigma, backend, seed, tol, block):
+def _solve_lanczos(L, B, k, sigma, backend, seed, tol, block, analysis=None):
     # L, B come renumbered in CSR (_permuted): the format of fast products with blocks of vectors
     t0 = time.perf_counter()
-    fac = factorize(L - sigma * B, backend=backend)
+    fac = factorize(L - sigma * B, backend=backend, analysis=analysis)
     t1 = time.perf_counter()
     used = fac.backend
     buf = {}  # block_lanczos keeps no solution past the next solve: one buffer per shape serves all
@@ -197,10 +197,7 @@ def solve_eigenproblem(L, B, k, method, sigma, backend, seed, tol, block):
     chain = [m for m in chain if m != "dense" or r <= DENSE_LIMIT_N]
     if chain[0] == "dense":
         check_memory(3 * 8 * r * r, f"a dense eigensolve of {r} vertices", "ask for fewer eigenpairs (iterative)")
-    else:
-        check_memory(peak_memory(r, k, block),
-                     f"the eigensolve of {k} eigenpairs on {r} vertices",
-                     "ask for fewer eigenpairs, or decimate the mesh")
+    else:  # the iterative solves check their memory once the factor's size is known (_solve_by)
         free = available_memory()
         if free is not None and 3 * 8 * r * r > free:
             chain = [m for m in chain if m != "dense"]
@@ -248,6 +245,12 @@ def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
         t0 = time.perf_counter()
         perm = reverse_cuthill_mckee(sp.csr_matrix(L), symmetric_mode=True)
         L, B = _permuted(L, perm), _permuted(B, perm)
+        # the factor's size from its symbolic analysis (shared with the factorization): then the memory check
+        analysis = analyze(L - s * B) if backend in ("auto", "cholmod") else None
+        check_memory(peak_memory(L.shape[0], k, block, None if analysis is None else analysis.nbytes),
+                     f"the eigensolve of {k} eigenpairs on {L.shape[0]:,} vertices",
+                     "ask for fewer eigenpairs, decimate the mesh, or smooth with o3dheat.heat_flow (the full "
+                     "heat kernel, without eigenpairs: a fraction of this memory)")
         t_perm = time.perf_counter() - t0
         # BLAS on one thread from the factorization to the end (as in a small dense solve): BLAS
         # sums (ARPACK's dot products, a factorization's blocks) depend on its thread count, and
@@ -255,9 +258,9 @@ def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
         # count in every call gives the same results, serial or concurrent, bit for bit
         with parallel.blas_one_thread():
             if method == "arpack":
-                lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, seed)
+                lam, X, used, t_fac, t_sol = _solve_arpack(L, B, k, s, backend, seed, analysis)
             else:
-                lam, X, used, t_fac, t_sol = _solve_lanczos(L, B, k, s, backend, seed, tol, block)
+                lam, X, used, t_fac, t_sol = _solve_lanczos(L, B, k, s, backend, seed, tol, block, analysis)
     t0 = time.perf_counter()
     with parallel.blas_one_thread():
         lam, X, res = _finish(lam, X, L, B, B_in, perm, method)

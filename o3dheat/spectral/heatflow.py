@@ -44,6 +44,7 @@ import scipy.sparse as sp
 from o3dheat import checks, parallel
 from o3dheat.errors import MeshError, OutOfMemory
 from o3dheat.geometry import Prepared, prepare
+from o3dheat.memory import available_memory, check_memory
 from o3dheat.typing import FieldLike, MeshLike, TimesLike
 
 from ._flow_setup import (
@@ -67,7 +68,6 @@ from ._flow_setup import (
 from .cache import memoized, memoized_has
 from .kernel import NORMALIZATIONS, HeatKernel, first_nonzero, mass_of, transfer_function
 from .krylov import MIN_STEPS, propagate
-from .memory import available_memory, check_memory
 from .spectrum import eigensolve_operators, shared_eigensolve
 
 __all__ = ["heat_flow", "HeatFlow", "FlowReport", "shift", "shift_groups", "SPLIT_RANGE", "METHODS"]

@@ -3,7 +3,7 @@
 Entry points: :func:`factorize` (a :class:`Factor`), :func:`analyze` (an :class:`Analysis` shared
 by the factorizations of one pattern), :func:`available_backends`. The CHOLMOD binding is
 :mod:`o3dheat.spectral._cholmod`; the memory checks made before factorizing are
-:mod:`o3dheat.spectral.memory`.
+:mod:`o3dheat.memory`.
 
 Notes
 -----
@@ -44,9 +44,9 @@ from numpy.typing import ArrayLike
 
 from o3dheat import parallel
 from o3dheat.errors import MeshError, OutOfMemory, SolverError
+from o3dheat.memory import check_memory
 
 from ._cholmod import ORDERINGS, Analysis, CholmodFactor, NotPositiveDefinite, TooLarge, library
-from .memory import check_memory
 
 __all__ = ["BACKENDS", "Factor", "available_backends", "factorize", "analyze", "Analysis"]
 

@@ -274,3 +274,21 @@ def test_decimate_without_the_map_has_the_same_faces():
     assert decimate(m, 0.0, vertex_map=False).vertex_map is None  # no map asked for: none, even of nothing removed
     assert decimate(m, target_faces=10**6, vertex_map=False).vertex_map is None
     assert decimate(m, 0.0).vertex_map.tolist() == list(range(len(m.vertex.positions)))
+
+
+def test_decimation_that_would_not_fit_in_memory_is_refused_before_it_starts(monkeypatch):
+    """Issue 35: fast-simplification takes about 400 bytes per face (680 with the vertex map) and
+    aborts the process when it runs out; the estimate is checked first."""
+    import fast_simplification
+
+    import o3dheat.memory as mm
+    from o3dheat.errors import OutOfMemory
+    from o3dheat.geometry.sampling import decimate, decimate_bytes
+
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40)
+    need = decimate_bytes(len(m.triangle.indices), vertex_map=False)
+    assert decimate_bytes(10**6, vertex_map=True) > decimate_bytes(10**6, vertex_map=False) > 400 * 10**6
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": need - 1})
+    monkeypatch.setattr(fast_simplification, "simplify", lambda *a, **k: pytest.fail("fast-simplification started"))
+    with pytest.raises(OutOfMemory, match=r"decimating 6,240 faces needs about 0\.\d\d GiB"):
+        decimate(m, 0.5, vertex_map=False)

@@ -6,9 +6,9 @@ import pytest
 import scipy.sparse as sp
 from linalg_cases import needs_cholmod, spd_matrix
 
+import o3dheat.memory as mm
 import o3dheat.spectral._cholmod as ch
 import o3dheat.spectral.linalg as la
-import o3dheat.spectral.memory as mm
 from o3dheat.errors import MeshError, OutOfMemory
 from o3dheat.spectral import fem
 

@@ -372,8 +372,8 @@ def test_beyond_the_representable_scales_the_mesh_is_refused(irregular_mesh):
 
 
 def test_eigensolve_refuses_what_does_not_fit_in_memory(monkeypatch, irregular_mesh):
+    import o3dheat.memory as mm
     import o3dheat.spectral._solvers as S
-    import o3dheat.spectral.memory as mm
 
     monkeypatch.setattr(mm, "memory_limits", lambda: {"system": 10_000})  # bytes
     monkeypatch.setattr(S, "available_memory", lambda: 10_000)

@@ -19,7 +19,7 @@ def available_memory() -> int | None:
 
     Examples
     --------
-    >>> import o3dheat.spectral.memory as mm
+    >>> import o3dheat.memory as mm
     >>> m = mm.available_memory(); m is None or m > 0
     True
     """
@@ -60,7 +60,7 @@ def memory_limits() -> dict[str, int]:
 
     Examples
     --------
-    >>> import o3dheat.spectral.memory as mm
+    >>> import o3dheat.memory as mm
     >>> room = mm.memory_limits()
     >>> set(room) <= {"system", "cgroup", "Dask worker", "address space"}, all(v >= 0 for v in room.values())
     (True, True)
@@ -210,7 +210,7 @@ def check_memory(needed: int, what: str, advice: str) -> None:
 
     Examples
     --------
-    >>> import o3dheat.spectral.memory as mm
+    >>> import o3dheat.memory as mm
     >>> mm.check_memory(1024, "a small task", "nothing")         # fits: no error
     """
     room = memory_limits()
@@ -222,14 +222,17 @@ def check_memory(needed: int, what: str, advice: str) -> None:
                           f"are available{where}: {advice}")
 
 
-def peak_memory(n: int, k: int = 100, block: int = 8) -> int:
+def peak_memory(n: int, k: int = 100, block: int = 8, factor: int | None = None) -> int:
     """Estimated peak memory of an iterative :func:`o3dheat.spectral.spectrum.eigensolve`, in bytes.
 
-    The Lanczos basis (``max(2k, k + 4 block) + block`` vectors of ``n`` float64) plus 2 KiB per
-    vertex for the Cholesky factor, the operators and the blocks of vectors, as measured on a mesh
-    of 1M vertices (``scripts/bench_spectrum.py``: resident memory added while solving peaked at
-    3.4 GiB for k = 100, 6.4 GiB for k = 300). A mesh fits when this is below the
-    memory available; eigensolve refuses with :class:`o3dheat.errors.OutOfMemory` otherwise.
+    The Lanczos basis (``max(2k, k + 4 block) + block`` vectors of ``n`` float64), the Cholesky
+    factorization's peak ``factor`` (:attr:`o3dheat.spectral.linalg.Analysis.nbytes`, known from the
+    symbolic analysis before the factor is made; without it 1800 bytes per vertex, what a uniform
+    torus's AMD factor takes), and 1200 bytes per vertex for the operators, their renumbered
+    copies and the blocks of vectors. Calibrated against the measured peaks of k = 100 at 250k, 1M,
+    2M and 4M vertices on a curvature-adaptive and a uniform mesh (``scripts/bench_memory.py``,
+    ``docs/details/large.md``): 3-20% above each. A mesh fits when this is below the memory
+    available; eigensolve refuses with :class:`o3dheat.errors.OutOfMemory` otherwise.
 
     Parameters
     ----------
@@ -237,6 +240,8 @@ def peak_memory(n: int, k: int = 100, block: int = 8) -> int:
         Vertices.
     k, block : int
         As for :func:`o3dheat.spectral.spectrum.eigensolve`.
+    factor : int, optional
+        The factorization's peak bytes, from its symbolic analysis.
 
     Returns
     -------
@@ -244,9 +249,9 @@ def peak_memory(n: int, k: int = 100, block: int = 8) -> int:
 
     Examples
     --------
-    >>> from o3dheat.spectral.memory import peak_memory
-    >>> round(peak_memory(1_000_000, 100) / 2**30, 1), round(peak_memory(1_000_000, 300) / 2**30, 1)
-    (3.5, 6.4)
+    >>> from o3dheat.memory import peak_memory
+    >>> round(peak_memory(1_000_000, 100) / 2**30, 1), round(peak_memory(1_000_000, 100, factor=691 * 2**20) / 2**30, 1)
+    (4.3, 3.3)
     """
     basis = min(n, max(2 * k, k + 4 * block)) + block
-    return int(n * (8 * basis + 2048))
+    return int(n * (8 * basis + 1200) + (1800 * n if factor is None else factor))

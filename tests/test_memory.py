@@ -1,8 +1,8 @@
-"""o3dheat.spectral.memory: the limits on this process's memory (system, cgroup, Dask worker, ulimit -v)."""
+"""o3dheat.memory: the limits on this process's memory (system, cgroup, Dask worker, ulimit -v)."""
 
 import pytest
 
-import o3dheat.spectral.memory as mm
+import o3dheat.memory as mm
 from o3dheat.errors import OutOfMemory
 
 
@@ -10,7 +10,7 @@ def test_available_memory_sees_an_address_space_limit():
     import subprocess
     import sys
 
-    code = ("import resource, o3dheat.spectral.memory as mm; resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30));"
+    code = ("import resource, o3dheat.memory as mm; resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30));"
             "m = mm.available_memory(); print(m is not None and m < 4 * 2**30)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.stdout.strip() == "True", out.stderr[-500:]
@@ -100,7 +100,7 @@ def test_the_address_space_limit_keeps_a_reserve_per_thread():
     import subprocess
     import sys
 
-    code = ("import resource, o3dheat.spectral.memory as mm, o3dheat.parallel as p;"
+    code = ("import resource, o3dheat.memory as mm, o3dheat.parallel as p;"
             "resource.setrlimit(resource.RLIMIT_AS, (6 * 2**30, 6 * 2**30));"
             "room = mm.memory_limits()['address space']; left = 6 * 2**30 - mm._statm(0);"
             "print(abs(left - room - mm.THREAD_ADDRESS_SPACE * (p.get_threads() + 1)) < 64 * 2**20)")
