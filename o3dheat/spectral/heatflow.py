@@ -83,6 +83,9 @@ _OPERATORS = object()  # HeatFlow(mesh=_OPERATORS): made by from_operators
 #: take about 85 steps), within half the memory left free by the result and the steps' work
 #: arrays; vectors beyond are regenerated (one more solve each) instead of stored
 KEPT_STEPS = 256
+#: Lanczos steps per column and group of times counted by :meth:`HeatFlow.peak_bytes` for the stored
+#: basis (the most measured at tol 1e-8 is 39, for a group spanning the widest range, 300x)
+ESTIMATED_STEPS = 48
 
 
 class HeatFlow:
@@ -290,6 +293,51 @@ class HeatFlow:
         pending = 8 * n * c * (T + 8)  # the result, written after the steps, and the steps' arrays
         return max(min(want, (free - pending) // 2), 64 * 2**20)
 
+    def peak_bytes(self, c: int = 1, t: TimesLike = 1.0) -> int:
+        """Estimated peak memory of :meth:`apply` with ``c`` fields at the times ``t``, in bytes,
+        beyond what this HeatFlow holds (its operators).
+
+        The factorization's peak (known from the symbolic analysis made with the operators,
+        :attr:`o3dheat.spectral.linalg.Analysis.nbytes`; three factors' size without it), and, when
+        the times make several groups (:func:`shift_groups`) and memory allows making the next
+        factor during the current group's solves, that factor beside the current one; the stored
+        basis (:data:`ESTIMATED_STEPS` steps per column, the basis of one group at a time), the
+        result (twice: on the prepared vertices and per input vertex) and the steps' work arrays
+        (8 vectors per column). Calibrated in ``docs/details/large.md``; :meth:`apply` refuses what
+        does not fit with :class:`~o3dheat.errors.OutOfMemory`.
+
+        Parameters
+        ----------
+        c : int
+            Fields (columns).
+        t : float or (T,) array_like
+            The times (paper convention).
+
+        Returns
+        -------
+        int
+
+        Examples
+        --------
+        >>> import open3d as o3d, o3dheat
+        >>> flow = o3dheat.HeatFlow(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20))
+        >>> flow.peak_bytes(1, [0.01, 0.1]) < flow.peak_bytes(8, [0.01, 0.1]) < flow.peak_bytes(8, [1e-4, 1.0])
+        True
+        """
+        c = checks.count(c, "c")
+        times = np.atleast_1d(checks.times(t))
+        n, T = len(self._prep.V), len(times)
+        analysis = self._ops.analysis
+        taus = np.sort(times[times > 0])
+        groups = len(shift_groups(taus)) if len(taus) else 0
+        factor = analysis.nbytes if analysis is not None else 0
+        peak = factor + 8 * n * c * (ESTIMATED_STEPS + 8) + 8 * (n + self.n) * c * T
+        if groups > 1:
+            free = available_memory()
+            if free is None or free > 2 * (factor + self._basis_bytes(c, T)):  # as _room_for_another
+                peak += factor
+        return int(peak)
+
     def apply(self, f: FieldLike, t: TimesLike, tol: float | None = None, *, return_report: bool = False,
               max_steps: int = 1000) -> np.ndarray | tuple[np.ndarray, FlowReport]:
         """``Φ_t f = exp(−(t/2) W⁻¹L) f`` (the full kernel) at one or many times.
@@ -342,8 +390,8 @@ class HeatFlow:
         prep = self._prep
         F = prep.restrict(f).reshape(len(prep.V), -1)
         c, T = F.shape[1], len(times)
-        check_memory(8 * (len(prep.V) + self.n) * c * T, f"the result ({c} fields x {T} times)",
-                     "ask for fewer fields or times at once")
+        check_memory(self.peak_bytes(c, times), f"the heat flow of {self.n:,} vertices, {c} field(s) x {T} times",
+                     "ask for fewer fields or times at once, decimate the mesh, or use more memory")
         try:
             U, report = self._flow(F, times, tol, int(max_steps))
         except MemoryError as e:  # numba's or numpy's allocation: said as the eigensolver says it

@@ -14,6 +14,7 @@ import dataclasses
 import logging
 import time
 from collections.abc import Callable
+from concurrent.futures import wait
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -21,6 +22,8 @@ import numpy as np
 from o3dheat import checks, parallel
 from o3dheat.errors import MeshError
 from o3dheat.geometry import as_arrays, check_mesh, decimate, height, prepare, transfer_map, up_axis
+from o3dheat.geometry.sampling import decimate_bytes
+from o3dheat.memory import available_memory, peak_memory
 from o3dheat.spectral import HeatFlow, HeatKernel, eigensolve
 from o3dheat.topology import Surface, critical_points, track_critical_points
 
@@ -246,7 +249,8 @@ def build(mesh, field=None, t=None, recipe: Recipe | None = None, echo: Callable
     # the operators first (GIL-bound numpy), then the surface as drawn in a thread beside the flow's
     # factorization and solves (which release the GIL and leave part of a core idle)
     smoother = _Smoother(V, F, recipe, say) if any(vals is None or vals.ndim == 1 for _, vals in given) else None
-    shown = _Shown(V, F, recipe.max_faces, say)
+    need = smoother.peak_bytes(sum(vals is None or vals.ndim == 1 for _, vals in given)) if smoother else 0
+    shown = _Shown(V, F, recipe.max_faces, say, need)
     if smoother is not None:
         smoother.drawn = shown.copy  # a decimated copy, for the grids' eigenvalues of a large mesh
     fields = _smoothed(smoother, given, t, up, say)
@@ -272,14 +276,21 @@ class _Shown:
     consistently (:func:`._layout.oriented`), its :class:`~o3dheat.topology.surface.Surface` with
     the edge tables built, and its parts."""
 
-    def __init__(self, V, F, max_faces, say):
+    def __init__(self, V, F, max_faces, say, need=0):
         self.n, self.m = len(V), len(F)
         decimating = max_faces is not None and len(F) > max_faces
+        # beside the fields' computation (``need`` bytes) when there is room for both twice over,
+        # else first: at 10M vertices each takes 8-10 GB
+        aside = not decimating or _room_for_both(decimate_bytes(len(F), vertex_map=False), need)
         if decimating:
-            say(f"decimating {len(F):,} faces to {max_faces:,} for the picture, while the fields are computed "
-                "(max_faces, --max-faces; None or 'none' keeps all)")
-        # a thread of its own: the flow's parallel loops keep the pool's threads
-        self.future = parallel.aside(self._made, V, F, max_faces if decimating else None, name="o3dheat-surface")
+            say(f"decimating {len(F):,} faces to {max_faces:,} for the picture, "
+                + ("while the fields are computed" if aside else "before the fields are computed (memory: not both at once)")
+                + " (max_faces, --max-faces; None or 'none' keeps all)")
+        if aside:  # a thread of its own: the flow's parallel loops keep the pool's threads
+            self.future = parallel.aside(self._made, V, F, max_faces if decimating else None, name="o3dheat-surface")
+        else:
+            self.future = parallel.aside(self._made, V, F, max_faces)
+            wait([self.future])  # done now; its error, if any, raised by drawn()
 
     @staticmethod
     def _made(V, F, max_faces):
@@ -431,6 +442,12 @@ def _smoothed(smoother, given, t, up, say):
     return [f for item in out for f in (item if isinstance(item, list) else [item])]
 
 
+def _room_for_both(first, second):
+    """Whether two computations of ``first`` and ``second`` bytes fit side by side twice over."""
+    free = available_memory()
+    return free is None or free > 2 * (first + second)
+
+
 class _Smoother:
     """``Φ_t f`` by the recipe's method, and the scale grids of its spectrum (computed once): with
     the exact flow on more than twice :data:`GRID_FACES` faces, the grids' spectrum is that of a
@@ -451,6 +468,12 @@ class _Smoother:
             self.kernel = HeatKernel(eigensolve((self.V, self.F), k=k))
             self.say(f"eigensolve, {k} eigenpairs: {time.perf_counter() - t0:.1f} s")
         return self.kernel
+
+    def peak_bytes(self, c):
+        """Estimated peak bytes of smoothing ``c`` fields (on about 30 scales over four decades)."""
+        if self.flow is not None:
+            return self.flow.peak_bytes(c, np.geomspace(1e-4, 1.0, 30))
+        return peak_memory(len(self.V), min(self.recipe.k, len(self.V) - 2)) + 8 * len(self.V) * c * 30
 
     def grid(self, count, kind):
         if self.flow is None or len(self.F) <= 2 * GRID_FACES:

@@ -193,3 +193,22 @@ def test_a_large_mesh_gets_its_grids_from_a_decimated_copy_and_says_so(monkeypat
     assert np.allclose(paper.times, own.scales(10), rtol=0.3)  # nearly the same scales, even on 300 vertices
     small = build((V, F), recipe=Recipe(k=30, tracks=False, method="spectral"))  # the spectral method: its own
     assert np.allclose(small.fields[1].times, own.scales(10))
+
+
+def test_a_mesh_too_large_for_both_is_decimated_before_the_flow_not_beside_it(monkeypatch):
+    """Issue 35: the picture's decimation runs beside the fields' computation only when both fit
+    twice over (at 10M vertices each takes 8-10 GB); else first, said."""
+    import o3dheat.visualization.scene as scene
+
+    V, F = torus(1.0, 0.4, 40, 20)  # 1600 faces, decimated to 800
+    said, threads = [], []
+    made = scene._Shown._made
+    monkeypatch.setattr(scene._Shown, "_made", staticmethod(lambda *a: threads.append(1) or made(*a)))
+    monkeypatch.setattr(scene, "available_memory", lambda: 1000)  # bytes: nothing fits twice
+    s = build((V, F), recipe=Recipe(k=20, tracks=False, max_faces=800), echo=said.append)
+    assert any("before the fields are computed (memory" in line for line in said)
+    assert len(s.F) <= 800 and threads == [1]
+    monkeypatch.setattr(scene, "available_memory", lambda: None)
+    said.clear()
+    build((V, F), recipe=Recipe(k=20, tracks=False, max_faces=800), echo=said.append)
+    assert any("while the fields are computed" in line for line in said)
