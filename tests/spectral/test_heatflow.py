@@ -434,6 +434,25 @@ def test_out_of_memory_in_the_flow_is_said_as_out_of_memory(monkeypatch):
         flow.apply(V[:, 2], [0.1])
 
 
+def test_the_flow_is_refused_up_front_when_its_estimate_does_not_fit(monkeypatch):
+    """Issue 35: apply checks its whole peak (factor from the analysis, basis, result), not the
+    result alone, and refuses before any factorization with the estimate and what to do."""
+    import o3dheat.memory as mm
+    from o3dheat.errors import OutOfMemory
+
+    V, F = icosphere(4)
+    flow = HeatFlow((V, F), cache=False)
+    one, wide = flow.peak_bytes(1, [1e-3, 1e-2]), flow.peak_bytes(1, [1e-4, 1.0])
+    assert flow.peak_bytes(8, [1e-3, 1e-2]) > one > 8 * len(V) * 56  # 48 basis steps and 8 work vectors
+    analysis = flow._ops.analysis
+    assert analysis is None or one >= analysis.nbytes
+    assert wide >= one  # two groups of times: a second factor beside the first, when there is room
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": one - 1})
+    monkeypatch.setattr(flow, "_flow", lambda *a: pytest.fail("the flow started"))
+    with pytest.raises(OutOfMemory, match=r"the heat flow of 2,562 vertices, 1 field\(s\) x 2 times needs about"):
+        flow.apply(V[:, 2], [1e-3, 1e-2])
+
+
 # ------------------------------------------------- issue 30: transfer functions are certified
 def _capped_sphere():
     """A sphere with a cap removed: a mesh with one boundary loop (565 vertices)."""
