@@ -1,6 +1,6 @@
 """The caches of spectra: one in memory per process (:class:`SpectrumCache`), and signed files on disk.
 
-Entry points: :func:`memoized`, :func:`memoized_has`, :func:`clear_cache`, :func:`set_cache` (the
+Entry points: :func:`memoized`, :func:`memoized_has`, :func:`forget`, :func:`clear_cache`, :func:`set_cache` (the
 process's cache, :data:`SPECTRA`: what :func:`o3dheat.spectral.spectrum.shared_eigensolve`, the
 filters and the heat flow share), :func:`default_cache_dir`, :func:`cache_max_bytes`,
 :func:`memory_cache_max_bytes`. The disk entries of :func:`o3dheat.spectral.spectrum.eigensolve`
@@ -28,7 +28,7 @@ from o3dheat.typing import PathLike
 
 from . import _spectrum_files
 
-__all__ = ["SpectrumCache", "SPECTRA", "memoized", "memoized_has", "clear_cache", "set_cache", "default_cache_dir",
+__all__ = ["SpectrumCache", "SPECTRA", "memoized", "memoized_has", "forget", "clear_cache", "set_cache", "default_cache_dir",
            "cache_max_bytes", "memory_cache_max_bytes"]
 
 log = logging.getLogger("o3dheat")
@@ -278,6 +278,33 @@ def memoized(key: Hashable, compute: Callable[[], Any], room: int = 0) -> Any:
     1
     """
     return SPECTRA.get(key, compute, room)
+
+
+def forget(match: Callable[[Hashable], bool]) -> int:
+    """Drop the results whose key ``match`` accepts from the in-memory cache (their memory is given
+    back once nothing else holds them); returns how many.
+
+    Parameters
+    ----------
+    match : callable
+        ``key -> bool``.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> import o3dheat.spectral.cache as c
+    >>> c.memoized(("example", 2), lambda: 1)
+    1
+    >>> c.forget(lambda key: key == ("example", 2)), c.memoized_has(("example", 2))
+    (1, False)
+    """
+    keys = [key for key in SPECTRA.entries if match(key)]
+    for key in keys:
+        del SPECTRA.entries[key]
+    return len(keys)
 
 
 def memoized_has(key: Hashable) -> bool:

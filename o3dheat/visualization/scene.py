@@ -423,14 +423,17 @@ def _smoothed(smoother, given, t, up, say):
         ("", smoother.grid(20, "log"), "20 log-spaced scales, the whole multi-scale range" + smoother.of),
         ("_paper", smoother.grid(10, "paper"), f"the paper's 10 scales (i/10)/λ_{recipe.k}" + smoother.of)]
     t0 = time.perf_counter()
-    G = smoother(np.column_stack([vals for _, _, vals, _ in todo]), np.concatenate([tg for _, tg, _ in grids]))
+    # the grids' times sorted, each once: the flow then writes its result in place (no reordered copy)
+    union, where = np.unique(np.concatenate([tg for _, tg, _ in grids]), return_inverse=True)
+    G = smoother(np.column_stack([vals for _, _, vals, _ in todo]), union)
+    smoother.release()  # the factors' memory, before the fields are copied out
     say(f"{', '.join(name for _, name, _, _ in todo)}: {G.shape[2]} scales by the {smoother.what} in "
         f"{time.perf_counter() - t0:.1f} s")
     smoothed = []
     for i, (_, name, vals, default) in enumerate(todo):
         start, fields = 0, []
         for suffix, times, what in grids:
-            Gi = np.ascontiguousarray(G[:, i, start:start + len(times)])
+            Gi = G[:, i, where[start:start + len(times)]]
             start += len(times)
             eps = np.abs(Gi - vals[:, None]).max(axis=0) / max(float(np.abs(vals).max()), 1e-300)
             about = f"height along {up} + {recipe.noise:g} noise (seed {recipe.seed}); " if default else ""
@@ -468,6 +471,11 @@ class _Smoother:
             self.kernel = HeatKernel(eigensolve((self.V, self.F), k=k))
             self.say(f"eigensolve, {k} eigenpairs: {time.perf_counter() - t0:.1f} s")
         return self.kernel
+
+    def release(self):
+        """The flow's factors let go (:meth:`o3dheat.HeatFlow.release`)."""
+        if self.flow is not None:
+            self.flow.release()
 
     def peak_bytes(self, c):
         """Estimated peak bytes of smoothing ``c`` fields (on about 30 scales over four decades)."""
