@@ -47,6 +47,7 @@ aim is 1.00..1.25).
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import resource
@@ -176,6 +177,8 @@ def child(job):
         from o3dheat.memory import peak_memory
 
         res["estimate"] = peak_memory(n, 100)
+        if job.get("factor") and "factor" in inspect.signature(peak_memory).parameters:  # given the analysis
+            res["estimate_factor"] = peak_memory(n, 100, factor=job["factor"])
     elif stage == "heat":
         import o3dheat.spectral.heatflow as hf
 
@@ -223,6 +226,8 @@ def child(job):
             "measured": max(sampled, maxrss if peak.reset else 0), "vm_peak": status("VmPeak")}
     if stage == "factor":
         res["ordering"] = getattr(a, "ordering", "")
+    if stage == "heat" and hasattr(o3dheat.HeatFlow, "peak_bytes"):  # o3dheat's own estimate (cached operators)
+        res["peak_bytes"] = o3dheat.HeatFlow((V, F)).peak_bytes(c, t)
     print(json.dumps(res))
 
 
@@ -426,7 +431,8 @@ def main():
                     record((stage, kind, size), r | {"n": len(z["V"]), "faces": len(z["F"]), "times": t, "bare": bare})
                 else:
                     why = skip(stage, kind, size)
-                    r = {"error": why, "wall": 0.0} if why else py_job({"job": stage, "path": str(path)}, cap)
+                    job = {"job": stage, "path": str(path), "factor": factor_estimate(kind, size)}
+                    r = {"error": why, "wall": 0.0} if why else py_job(job, cap)
                     record((stage, kind, size), r)
         tables(stage, results)
     ram = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") / 2**30
@@ -447,10 +453,12 @@ def tables(stage, results):
                   "measured MiB (sampled / maxrss) | estimate / measured | CHOLMOD peak MiB | CHOLMOD / measured | "
                   "final f.nbytes MiB | s |",
         "eigensolve": "| mesh | n | estimate peak_memory(n, 100) MiB | measured MiB (sampled / maxrss) | "
-                      "estimate / measured | s (factorize + solve) |",
+                      "estimate / measured | peak_memory(n, 100, factor=a.nbytes) MiB | its ratio | "
+                      "s (factorize + solve) |",
         "heat": "| mesh | n | grid | T | c | estimate: result + factor + basis MiB | measured MiB (sampled / maxrss) | "
-                "estimate / measured | result 8ncT MiB | factor a.nbytes MiB | basis 8nc·steps MiB | o3dheat's check "
-                "2·8ncT MiB | solves | steps (max per group) | basis budget MiB | replayed | s |",
+                "estimate / measured | HeatFlow.peak_bytes MiB | its ratio | result 8ncT MiB | factor a.nbytes MiB | "
+                "basis 8nc·steps MiB | 2·8ncT MiB | solves | steps (max per group) | basis budget MiB | replayed | "
+                "s |",
         "decimate": "| mesh | n | faces | vertex_map | measured MiB (sampled / maxrss) | bytes / input face | "
                     "faces out | s |",
         "page": "| mesh | n | faces | max RSS MiB | measured: max RSS - bare MiB | bytes / vertex | bytes / face | "
@@ -462,19 +470,22 @@ def tables(stage, results):
     for k, r in rows:
         kind, size = k[1], k[2]
         if "error" in r:
-            lead = {"heat": f" {k[3]} | {10 if k[3] == 'paper' else 20} | {k[4]} |", "decimate": f" {k[3]} |"}
-            print(f"| {kind} | {size} |{lead.get(stage, '')} {r['error'][:120]} |")
+            lead = (f" {k[3]} | {10 if k[3] == 'paper' else 20} | {k[4]} |" if stage == "heat"
+                    else f" {k[3]} |" if stage == "decimate" else "")
+            print(f"| {kind} | {size} |{lead} {r['error'][:120]} |")
             continue
         n, m = r["n"], r.get("measured")
         both = f"{mib(m)} ({mib(r.get('sampled'))} / {mib(r.get('maxrss'))})"
         if stage == "factor":
-            print(f"| {kind} | {n} | {r['faces']} | {r['lnz']} ({r.get('ordering', '')}) | {r['xsize']} | {r['flops']:.3g} | "
-                  f"{mib(r['estimate'])} | {both} | {ratio(r['estimate'], m)} | {mib(r['cholmod_peak'])} | "
+            print(f"| {kind} | {n} | {r['faces']} | {r['lnz']} ({r.get('ordering', '')}) | {r['xsize']} | "
+                  f"{r['flops']:.3g} | {mib(r['estimate'])} | {both} | {ratio(r['estimate'], m)} | "
+                  f"{mib(r['cholmod_peak'])} | "
                   f"{ratio(r['cholmod_peak'], m)} | {mib(r['final'])} | {r['seconds']:.1f} |")
         elif stage == "eigensolve":
             tm = r["timings"]
-            print(f"| {kind} | {n} | {mib(r['estimate'])} | {both} | {ratio(r['estimate'], m)} | {r['seconds']:.1f} "
-                  f"({tm.get('factorize', 0):.1f} + {tm.get('solve', 0):.1f}) |")
+            ef = r.get("estimate_factor")
+            print(f"| {kind} | {n} | {mib(r['estimate'])} | {both} | {ratio(r['estimate'], m)} | {mib(ef)} | "
+                  f"{ratio(ef, m)} | {r['seconds']:.1f} ({tm.get('factorize', 0):.1f} + {tm.get('solve', 0):.1f}) |")
         elif stage == "heat":
             c, T = r["fields"], r["T"]
             result = 8 * n * c * T
@@ -484,7 +495,9 @@ def tables(stage, results):
             est = result + basis + (fe or 0)
             budgets = [g["budget"] for g in r["groups"] if g["budget"] is not None]
             per = ", ".join(str(g["max_steps"]) for g in r["groups"])
-            print(f"| {kind} | {n} | {k[3]} | {T} | {c} | {mib(est)} | {both} | {ratio(est, m)} | {mib(result)} | "
+            pb = r.get("peak_bytes")
+            print(f"| {kind} | {n} | {k[3]} | {T} | {c} | {mib(est)} | {both} | {ratio(est, m)} | {mib(pb)} | "
+                  f"{ratio(pb, m)} | {mib(result)} | "
                   f"{mib(fe)} | {mib(basis)} | {mib(2 * result)} | {r['solves']} | {steps} ({per}) | "
                   f"{mib(min(budgets)) if budgets else ''} | {sum(g['replayed'] for g in r['groups'])} | "
                   f"{r['seconds']:.1f} |")

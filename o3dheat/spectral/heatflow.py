@@ -83,9 +83,10 @@ _OPERATORS = object()  # HeatFlow(mesh=_OPERATORS): made by from_operators
 #: take about 85 steps), within half the memory left free by the result and the steps' work
 #: arrays; vectors beyond are regenerated (one more solve each) instead of stored
 KEPT_STEPS = 256
-#: Lanczos steps per column and group of times counted by :meth:`HeatFlow.peak_bytes` for the stored
-#: basis (the most measured at tol 1e-8 is 39, for a group spanning the widest range, 300x)
-ESTIMATED_STEPS = 48
+#: Lanczos steps per column counted by :meth:`HeatFlow.peak_bytes` for the stored basis of a group of
+#: times spanning a ratio R: ``a + b log10(R)`` (measured at tol 1e-8: 17 for one time, 22-27 for
+#: R = 10, 41 for R = 100, 39 for R = 300)
+ESTIMATED_STEPS = (20, 10)
 
 
 class HeatFlow:
@@ -317,13 +318,13 @@ class HeatFlow:
         beyond what this HeatFlow holds (its operators).
 
         The factorization's peak (known from the symbolic analysis made with the operators,
-        :attr:`o3dheat.spectral.linalg.Analysis.nbytes`; three factors' size without it), and, when
-        the times make several groups (:func:`shift_groups`) and memory allows making the next
-        factor during the current group's solves, that factor beside the current one; the stored
-        basis (:data:`ESTIMATED_STEPS` steps per column, the basis of one group at a time), the
-        result (twice: on the prepared vertices and per input vertex) and the steps' work arrays
-        (8 vectors per column). Calibrated in ``docs/details/large.md``; :meth:`apply` refuses what
-        does not fit with :class:`~o3dheat.errors.OutOfMemory`.
+        :attr:`o3dheat.spectral.linalg.Analysis.nbytes`) and the shifted matrix it factors (twice),
+        and, when the times make several groups (:func:`shift_groups`) and memory allows making the
+        next factor during the current group's solves, that factor beside the current one; the
+        stored basis of the widest group (:data:`ESTIMATED_STEPS`); the result (and its copy per
+        input vertex when vertices were welded or set aside) and the steps' work arrays (8 vectors
+        per column). Calibrated in ``docs/details/large.md``; :meth:`apply` refuses what does not
+        fit with :class:`~o3dheat.errors.OutOfMemory`.
 
         Parameters
         ----------
@@ -338,9 +339,10 @@ class HeatFlow:
 
         Examples
         --------
-        >>> import open3d as o3d, o3dheat
+        >>> import numpy as np, open3d as o3d, o3dheat
         >>> flow = o3dheat.HeatFlow(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 20))
-        >>> flow.peak_bytes(1, [0.01, 0.1]) < flow.peak_bytes(8, [0.01, 0.1]) < flow.peak_bytes(8, [1e-4, 1.0])
+        >>> ten, wide = np.geomspace(0.01, 0.1, 10), np.geomspace(1e-4, 1.0, 20)     # one decade, four
+        >>> flow.peak_bytes(1, ten) < flow.peak_bytes(8, ten) < flow.peak_bytes(8, wide)
         True
         """
         c = checks.count(c, "c")
@@ -348,10 +350,13 @@ class HeatFlow:
         n, T = len(self._prep.V), len(times)
         analysis = self._ops.analysis
         taus = np.sort(times[times > 0])
-        groups = len(shift_groups(taus)) if len(taus) else 0
+        groups = shift_groups(taus) if len(taus) else []
         factor = analysis.nbytes if analysis is not None else 0
-        peak = factor + 8 * n * c * (ESTIMATED_STEPS + 8) + 8 * (n + self.n) * c * T
-        if groups > 1:
+        a, b = ESTIMATED_STEPS
+        steps = max([a + b * np.log10(taus[g[-1]] / taus[g[0]]) for g in groups], default=0.0)
+        expanded = self._prep.weld is not None or len(self._prep.keep) != self._prep.n_input  # expand copies
+        peak = (factor + 24 * self._ops.L.nnz + 8 * n * c * (steps + 8) + 8 * n * c * T * (2 if expanded else 1))
+        if len(groups) > 1:
             free = available_memory()
             if free is None or free > 2 * (factor + self._basis_bytes(c, T)):  # as _room_for_another
                 peak += factor
