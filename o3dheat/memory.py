@@ -228,10 +228,10 @@ def peak_memory(n: int, k: int = 100, block: int = 8, factor: int | None = None)
     The Lanczos basis (``max(2k, k + 4 block) + block`` vectors of ``n`` float64), the Cholesky
     factorization's peak ``factor`` (:attr:`o3dheat.spectral.linalg.Analysis.nbytes`, known from the
     symbolic analysis before the factor is made; without it 1800 bytes per vertex, what a uniform
-    torus's AMD factor takes), and 1200 bytes per vertex for the operators, their renumbered
-    copies and the blocks of vectors. Calibrated against the measured peaks of k = 100 at 250k, 1M,
-    2M and 4M vertices on a curvature-adaptive and a uniform mesh (``scripts/bench_memory.py``,
-    ``docs/details/large.md``): 3-20% above each. A mesh fits when this is below the memory
+    torus's AMD factor takes), 1350 bytes per vertex for the operators, their renumbered copies
+    and the blocks of vectors, and 64 MiB. Calibrated against the measured peaks of k = 100 at
+    250k, 1M, 2M and 4M vertices on a curvature-adaptive and a uniform mesh
+    (``scripts/bench_memory.py``, ``docs/details/large.md``): 4-19% above each. A mesh fits when this is below the memory
     available; eigensolve refuses with :class:`o3dheat.errors.OutOfMemory` otherwise.
 
     Parameters
@@ -251,7 +251,7 @@ def peak_memory(n: int, k: int = 100, block: int = 8, factor: int | None = None)
     --------
     >>> from o3dheat.memory import peak_memory
     >>> round(peak_memory(1_000_000, 100) / 2**30, 1), round(peak_memory(1_000_000, 100, factor=691 * 2**20) / 2**30, 1)
-    (4.3, 3.3)
+    (4.5, 3.5)
     """
     basis = min(n, max(2 * k, k + 4 * block)) + block
-    return int(n * (8 * basis + 1200) + (1800 * n if factor is None else factor))
+    return int(n * (8 * basis + 1350) + (1800 * n if factor is None else factor) + 64 * 2**20)

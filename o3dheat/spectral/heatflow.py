@@ -85,8 +85,8 @@ _OPERATORS = object()  # HeatFlow(mesh=_OPERATORS): made by from_operators
 KEPT_STEPS = 256
 #: Lanczos steps per column counted by :meth:`HeatFlow.peak_bytes` for the stored basis of a group of
 #: times spanning a ratio R: ``a + b log10(R)`` (measured at tol 1e-8: 17 for one time, 22-27 for
-#: R = 10, 41 for R = 100, 39 for R = 300)
-ESTIMATED_STEPS = (20, 10)
+#: R = 10, 41 for R = 100, 31-39 for R = 60-300)
+ESTIMATED_STEPS = (17, 10)
 
 
 class HeatFlow:
@@ -318,13 +318,15 @@ class HeatFlow:
         beyond what this HeatFlow holds (its operators).
 
         The factorization's peak (known from the symbolic analysis made with the operators,
-        :attr:`o3dheat.spectral.linalg.Analysis.nbytes`) and the shifted matrix it factors (twice),
-        and, when the times make several groups (:func:`shift_groups`) and memory allows making the
-        next factor during the current group's solves, that factor beside the current one; the
-        stored basis of the widest group (:data:`ESTIMATED_STEPS`); the result (and its copy per
-        input vertex when vertices were welded or set aside) and the steps' work arrays (8 vectors
-        per column). Calibrated in ``docs/details/large.md``; :meth:`apply` refuses what does not
-        fit with :class:`~o3dheat.errors.OutOfMemory`.
+        :attr:`o3dheat.spectral.linalg.Analysis.nbytes`) and, when the times make several groups
+        (:func:`shift_groups`) and memory allows making the next factor during the current group's
+        solves, the current factor beside it (``(8 + index bytes) nnz(L) + 48 n``); the stored
+        basis of the widest group (:data:`ESTIMATED_STEPS`, within the basis' budget); the result
+        (and its copy per input vertex when vertices were welded or set aside); 420 bytes per vertex
+        and 32 per vertex and field of operators' copies and work arrays, and 32 MiB. Calibrated
+        against the measured peaks at 250k, 1M, 2M and 4M vertices, 1, 8 and 32 fields, 10 and 20
+        times, on a curvature-adaptive and a uniform mesh (``docs/details/large.md``): 4-23% above
+        each. :meth:`apply` refuses what does not fit with :class:`~o3dheat.errors.OutOfMemory`.
 
         Parameters
         ----------
@@ -355,11 +357,12 @@ class HeatFlow:
         a, b = ESTIMATED_STEPS
         steps = max([a + b * np.log10(taus[g[-1]] / taus[g[0]]) for g in groups], default=0.0)
         expanded = self._prep.weld is not None or len(self._prep.keep) != self._prep.n_input  # expand copies
-        peak = (factor + 24 * self._ops.L.nnz + 8 * n * c * (steps + 8) + 8 * n * c * T * (2 if expanded else 1))
-        if len(groups) > 1:
+        basis = min(8 * n * c * steps, self._basis_bytes(c, T))
+        peak = factor + basis + 8 * n * c * T * (2 if expanded else 1) + (420 + 32 * c) * n + 32 * 2**20
+        if len(groups) > 1 and analysis is not None:
             free = available_memory()
             if free is None or free > 2 * (factor + self._basis_bytes(c, T)):  # as _room_for_another
-                peak += factor
+                peak += (16 if analysis.wide else 12) * analysis.lnz + 48 * n  # the current factor, kept
         return int(peak)
 
     def apply(self, f: FieldLike, t: TimesLike, tol: float | None = None, *, return_report: bool = False,

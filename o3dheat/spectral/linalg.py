@@ -247,7 +247,7 @@ def _cholmod(A, mode, analysis=None):
     lib = library()
     if lib is not None:
         try:
-            return _fallback_solve(CholmodFactor(lib, A, mode, analysis), A, mode)
+            return _BindingSolve(CholmodFactor(lib, A, mode, analysis), A, mode)
         except (OutOfMemory, NotPositiveDefinite, TooLarge):
             raise  # a property of the matrix or of the machine: scikit-sparse would fail alike
         except Exception as e:  # noqa: BLE001 - too big for the int32 interface, another layout...
@@ -262,30 +262,37 @@ def _warn_binding(e):
     log.log(level, "CHOLMOD through ctypes failed (%s): scikit-sparse's own solver instead (one thread)", reason)
 
 
-def _fallback_solve(factor, A, mode):
-    """``factor.solve``, replaced for good by scikit-sparse's solver when a solve fails in the
-    binding (the matrix is kept for that: about a tenth of the factor's memory)."""
-    state = {"solve": None}
+class _BindingSolve:
+    """``factor.solve`` through the binding, replaced for good by scikit-sparse's solver when a
+    solve fails in it (the matrix is kept for that: about a tenth of the factor's memory). An
+    object without reference cycles: the factor's memory goes back as soon as the last reference
+    to it does (a closure that referred to itself kept every factor of a flow until Python's cycle
+    collector ran: the first factor of a 4M-vertex flow stayed while the second was made)."""
 
-    def solve(b, out=None):
-        if state["solve"] is None:
+    def __init__(self, factor, A, mode):
+        self.factor, self.A, self.mode, self.fallback = factor, A, mode, None
+        self.nbytes = getattr(factor, "nbytes", 0)
+
+    def __call__(self, b, out=None):
+        if self.fallback is None:
             try:
-                return factor.solve(b, out=out)
+                return self.factor.solve(b, out=out)
             except (OutOfMemory, MemoryError):
                 raise
             except Exception as e:  # noqa: BLE001 - any failure of the binding
                 _warn_binding(e)
-                state["solve"] = _sksparse(A, mode)
-        x = state["solve"](b)
+                self.fallback = _sksparse(self.A, self.mode)
+        x = self.fallback(b)
         if out is None:
             return x
         np.copyto(out, x)
         return out
 
-    solve.into = lambda b, out: solve(b, out)
-    solve.nbytes = getattr(factor, "nbytes", 0)
-    solve.release = factor.release
-    return solve
+    def into(self, b, out):
+        return self(b, out)
+
+    def release(self):
+        self.factor.release()
 
 
 def _sksparse(A, mode):

@@ -453,6 +453,38 @@ def test_the_flow_is_refused_up_front_when_its_estimate_does_not_fit(monkeypatch
         flow.apply(V[:, 2], [1e-3, 1e-2])
 
 
+def test_a_groups_factor_is_freed_before_the_next_is_made(monkeypatch):
+    """Issue 35: at 4M vertices the first group's factor stayed in memory while the second was
+    made (a closure that referred to itself kept it until Python's cycle collector ran): with the
+    cycle collector off, the first factor is gone before the second factorization starts."""
+    import gc
+    import weakref
+
+    import o3dheat.spectral._cholmod as ch
+
+    if ch.library() is None:
+        pytest.skip("no CHOLMOD binding here")
+    V, F = icosphere(3)
+    made, alive_at_start = [], []
+    original = ch.CholmodFactor.__init__
+
+    def init(self, *args, **kwargs):
+        alive_at_start.append([r() is not None for r in made])
+        original(self, *args, **kwargs)
+        made.append(weakref.ref(self))
+
+    monkeypatch.setattr(ch.CholmodFactor, "__init__", init)
+    monkeypatch.setenv("O3DHEAT_MEMORY_CACHE_MB", "0")  # nothing kept by the cache
+    flow = HeatFlow((V, F), cache=True)
+    monkeypatch.setattr(flow, "_room_for_another", lambda *a: False)  # one factor after the other
+    gc.disable()
+    try:
+        flow.apply(V[:, 2], [1e-4, 1e-3, 1.0, 10.0])  # two groups, two factors
+    finally:
+        gc.enable()
+    assert len(made) == 2 and alive_at_start == [[], [False]]
+
+
 # ------------------------------------------------- issue 30: transfer functions are certified
 def _capped_sphere():
     """A sphere with a cap removed: a mesh with one boundary loop (565 vertices)."""
