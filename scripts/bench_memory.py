@@ -19,7 +19,7 @@ non-uniform) and its torus (uniform), at 250k, 1M, 2M and 4M vertices, made once
   analysis the flow made) and the stored basis ``8 n c s`` (s: the most steps of a column in one shift
   group, recorded by wrapping ``heatflow.propagate``); o3dheat's own check (``2 x 8 n c T``) shown;
 * ``decimate``: ``sampling.decimate((V, F), target_faces=400_000)`` (the page's default; with and
-  without the vertex map, the page's call having none); no estimate exists: bytes per input face;
+  without the vertex map, the page's call having none); estimate ``sampling.decimate_bytes``;
 * ``page``: the command ``o3dheat view MESH.ply -o page.html --overwrite --times a+b+c`` (the
   first and last paper times and the last log time: no eigensolve) under ``/usr/bin/time -v``:
   its maximum resident set size less that of ``python -c "import o3dheat, open3d"``.
@@ -467,8 +467,8 @@ def tables(stage, results):
                 "estimate / measured | HeatFlow.peak_bytes MiB | its ratio | result 8ncT MiB | factor a.nbytes MiB | "
                 "basis 8nc·steps MiB | 2·8ncT MiB | solves | steps (max per group) | basis budget MiB | replayed | "
                 "s |",
-        "decimate": "| mesh | n | faces | vertex_map | measured MiB (sampled / maxrss) | bytes / input face | "
-                    "faces out | s |",
+        "decimate": "| mesh | n | faces | vertex_map | decimate_bytes MiB | measured MiB (sampled / maxrss) | "
+                    "estimate / measured | bytes / input face | faces out | s |",
         "page": "| mesh | n | faces | max RSS MiB | measured: max RSS - bare MiB | bytes / vertex | bytes / face | "
                 "wall s |",
     }[stage]
@@ -510,8 +510,11 @@ def tables(stage, results):
                   f"{mib(min(budgets)) if budgets else ''} | {sum(g['replayed'] for g in r['groups'])} | "
                   f"{r['seconds']:.1f} |")
         elif stage == "decimate":
-            print(f"| {kind} | {n} | {r['faces']} | {k[3]} | {both} | {m / r['faces']:.0f} | {r['out_faces']} | "
-                  f"{r['seconds']:.1f} |")
+            from o3dheat.geometry.sampling import decimate_bytes
+
+            est = decimate_bytes(r["faces"], k[3])
+            print(f"| {kind} | {n} | {r['faces']} | {k[3]} | {mib(est)} | {both} | {ratio(est, m)} | "
+                  f"{m / r['faces']:.0f} | {r['out_faces']} | {r['seconds']:.1f} |")
         else:
             print(f"| {kind} | {n} | {r['faces']} | {mib(r['maxrss'])} | {mib(m)} | {m / n:.0f} | "
                   f"{m / r['faces']:.0f} | {r['wall']:.1f} |")
