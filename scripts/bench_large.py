@@ -12,16 +12,18 @@ Meshes, made here (each in its own process, which then runs every stage):
   equal angles, projected); ``torus``: a torus sampled uniformly (``scripts/bench_spectrum.torus``),
   whose factor has about twice the fill.
 
-Stages: write the mesh to a binary PLY (set-up, not counted in the total), read it back
+Stages, in processes of their own (the parent holds no mesh): make the mesh and write it to a
+binary PLY (set-up, not counted in the total); then in one process: read it back
 (``o3dheat.io.read_mesh``), the scales (λ_2 and λ_100 of a copy decimated to
 ``o3dheat.visualization.scene.GRID_FACES`` faces, as ``o3dheat view`` gets them: the mesh's own
-eigensolve would not fit), ``heat_flow`` of the noisy height (0.1 of its range, seed 0) on the
-paper's 10 scales and on 20 log scales (one HeatFlow: operators once), critical points at every
-one of the 30 scales, the tracks of both grids, then the command ``o3dheat view`` (defaults: it
-decimates the page, says so, and computes its own flow and scales) and ``o3dheat figure``, each
-in a process of its own, and last the k = 100 eigensolve (refused up front with its estimate, or
-run). For each stage: seconds, the largest resident set size during the stage (sampled every
-20 ms), and for the commands their own peak (``wait4``'s ``ru_maxrss``).
+eigensolve would not fit), the HeatFlow (operators and symbolic analysis), ``heat_flow`` of the
+noisy height (0.1 of its range, seed 0) on the paper's 10 scales and on 20 log scales (with
+``HeatFlow.peak_bytes``, the estimate it checks), critical points at every one of the 30 scales,
+the tracks of both grids; then the commands ``o3dheat view`` (defaults: it decimates the page,
+says so, and computes its own flow and scales) and ``o3dheat figure``; last the k = 100
+eigensolve (refused up front with its estimate, or run). For each stage: seconds and the largest
+resident set size during it (sampled every 20 ms); for the commands, their own peak (``wait4``'s
+``ru_maxrss``).
 
     .venv/bin/python scripts/bench_large.py                       # scan and ellipsoid, 10M vertices
     .venv/bin/python scripts/bench_large.py --sizes 1000000       # a quicker check of the same stages
@@ -152,7 +154,22 @@ def command(args):
     return {"peak": usage.ru_maxrss * 1024, "note": note[:400]}
 
 
-def child(kind, n, folder, eigensolve):
+def make(kind, n, folder):
+    """The mesh, written to ``folder/kind.ply`` (a process of its own: its memory is not the stages')."""
+    import open3d as o3d
+
+    import o3dheat
+
+    V, F = {"scan": scan, "ellipsoid": ellipsoid, "torus": torus}[kind](n)
+    mesh = o3d.t.geometry.TriangleMesh()
+    mesh.vertex.positions = o3d.core.Tensor(V)
+    mesh.triangle.indices = o3d.core.Tensor(F)
+    o3dheat.io.write_mesh(Path(folder) / f"{kind}.ply", mesh, overwrite=True)
+    print(json.dumps({"n": len(V), "faces": len(F)}))
+
+
+def stages(kind, folder):
+    """The Python stages on the written mesh, each timed with its peak memory."""
     import o3dheat
     from o3dheat.geometry.sampling import decimate
     from o3dheat.topology import Surface, critical_points, track_critical_points
@@ -160,24 +177,10 @@ def child(kind, n, folder, eigensolve):
 
     o3dheat.heat_flow(o3dheat.io.default_mesh()[0], np.arange(28088.0), [1e-3, 1e-2])  # numba's cache, imports
     st = Stages()
-    ply = Path(folder) / f"{kind}.ply"
-
-    def make():
-        import open3d as o3d
-
-        V, F = {"scan": scan, "ellipsoid": ellipsoid, "torus": torus}[kind](n)
-        mesh = o3d.t.geometry.TriangleMesh()
-        mesh.vertex.positions = o3d.core.Tensor(V)
-        mesh.triangle.indices = o3d.core.Tensor(F)
-        o3dheat.io.write_mesh(ply, mesh, overwrite=True)
-        return len(V), len(F)
-
-    nv, nf = st.run("make and write the mesh (set-up)", make)
-    print(f"{kind}: {nv:,} vertices, {nf:,} faces", file=sys.stderr, flush=True)
-    mesh = st.run("read the PLY", o3dheat.io.read_mesh, ply)
+    mesh = st.run("read the PLY", o3dheat.io.read_mesh, Path(folder) / f"{kind}.ply")
     V = mesh.vertex.positions.numpy().astype(np.float64)
     F = mesh.triangle.indices.numpy().astype(np.int64)
-    del mesh
+    mesh = None
     axis = int(np.argmax(np.ptp(V, axis=0)))
     f = V[:, axis] + 0.1 * np.ptp(V[:, axis]) * np.random.default_rng(0).standard_normal(len(V))
 
@@ -187,53 +190,70 @@ def child(kind, n, folder, eigensolve):
         return K.scales(10), K.scales(20, grid="log")
 
     paper, log = st.run(f"scales: λ_2, λ_100 of a {GRID_FACES:,}-face copy", scales)
-    flow = o3dheat.HeatFlow((V, F))
+    flow = st.run("HeatFlow: operators and symbolic analysis", o3dheat.HeatFlow, (V, F))
     info = {}
 
     def smooth(t, name):
+        est = flow.peak_bytes(1, t)
         out, rep = flow.apply(f, t, return_report=True)
-        info[name] = f"{rep.solves} solves, {len(rep.shifts)} shifts, estimate <= {rep.estimate.max():.1e}"
+        info[name] = (f"{rep.solves} solves, {len(rep.shifts)} shift(s), estimate <= {rep.estimate.max():.1e}; "
+                      f"peak_bytes {est / 2**30:.2f} GiB")
         return out
 
-    P = st.run("heat_flow, paper's 10 scales", smooth, paper, "paper")
-    st.rows[-1]["note"] = info.get("paper", st.rows[-1]["note"])
-    G = st.run("heat_flow, 20 log scales", smooth, log, "log")
-    st.rows[-1]["note"] = info.get("log", st.rows[-1]["note"])
+    results = {}
+    for name, t, what in (("paper", paper, "the paper's 10 scales"), ("log", log, "20 log scales")):
+        results[name] = st.run(f"heat_flow, {what}", smooth, t, name)
+        if name in info:
+            st.rows[-1]["note"] = info[name]
     flow = None  # its factors' memory back
-    S = st.run("surface (topology tables)", Surface.from_faces, len(V), F, V)
+    P, G = results["paper"], results["log"]
+    if P is None or G is None:
+        st.rows.append({"stage": "critical points, tracks", "s": 0.0, "peak": 0, "note": "skipped: no flow"})
+    else:
+        S = st.run("surface (topology tables)", Surface.from_faces, len(V), F, V)
 
-    def critical():
-        from o3dheat import parallel
+        def critical():
+            from o3dheat import parallel
 
-        cols = [P[:, j] for j in range(P.shape[1])] + [G[:, j] for j in range(G.shape[1])]
-        return parallel.run(lambda c: critical_points(S, c), [(c,) for c in cols])
+            cols = [P[:, j] for j in range(P.shape[1])] + [G[:, j] for j in range(G.shape[1])]
+            return parallel.run(lambda c: critical_points(S, c), [(c,) for c in cols])
 
-    cps = st.run("critical points at 30 scales", critical)
-    if cps is not None:
+        cps = st.run("critical points at 30 scales", critical)
         st.rows[-1]["note"] = f"first {cps[0].counts}, last {cps[-1].counts}"
 
-    def tracks():
-        a = track_critical_points(S, P, paper, critical=tuple(cps[:10]))
-        b = track_critical_points(S, G, log, critical=tuple(cps[10:]))
-        return f"{len(a):,} + {len(b):,} tracks"
+        def tracks():
+            a = track_critical_points(S, P, paper, critical=tuple(cps[:10]))
+            b = track_critical_points(S, G, log, critical=tuple(cps[10:]))
+            return f"{len(a):,} + {len(b):,} tracks"
 
-    said = st.run("tracks of both grids", tracks)
-    if isinstance(said, str):
-        st.rows[-1]["note"] = said
-    P = G = S = cps = None  # memory back before the commands run
-    st.run("o3dheat view (a process)", command, ["view", str(ply), "-o", str(Path(folder) / f"{kind}.html"),
-                                                  "--overwrite"])
-    st.run("o3dheat figure (a process)", command, ["figure", str(ply), "-o", str(Path(folder) / f"{kind}-figures"),
-                                                    "--overwrite"])
-    if eigensolve:
-        def eig():
-            s = o3dheat.eigensolve((V, F), k=100)
-            return {"note": f"ran: λ_100 = {s.eigenvalues[-1]:.6g}"}
-
-        st.run("eigensolve k = 100", eig)
+        st.rows[-1]["note"] = st.run("tracks of both grids", tracks) or st.rows[-1]["note"]
     st._stop = True
-    print(json.dumps({"kind": kind, "n": nv, "faces": nf, "rows": st.rows,
-                      "maxrss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}))
+    print(json.dumps({"rows": st.rows, "maxrss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}))
+
+
+def eigensolve(kind, folder):
+    """The k = 100 eigensolve of the mesh: refused up front with its estimate, or run."""
+    import o3dheat
+
+    mesh = o3dheat.io.read_mesh(Path(folder) / f"{kind}.ply")
+    st = Stages()
+
+    def eig():
+        s = o3dheat.eigensolve(mesh, k=100)
+        return {"note": f"ran: λ_100 = {s.eigenvalues[-1]:.6g}"}
+
+    st.run("eigensolve k = 100", eig)
+    st._stop = True
+    print(json.dumps({"rows": st.rows, "maxrss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}))
+
+
+def child_process(args):
+    """``(json, peak bytes, exit code)`` of ``python bench_large.py --child ARGS`` (wait4's ru_maxrss)."""
+    p = subprocess.Popen([sys.executable, __file__, "--child", *args], stdout=subprocess.PIPE, text=True)
+    out = p.stdout.read()
+    _, status, usage = os.wait4(p.pid, 0)
+    lines = [line for line in out.splitlines() if line.startswith("{")]
+    return (json.loads(lines[-1]) if lines else None), usage.ru_maxrss * 1024, os.waitstatus_to_exitcode(status)
 
 
 def main():
@@ -242,31 +262,47 @@ def main():
     ap.add_argument("--meshes", default="scan,ellipsoid", help="scan, ellipsoid (uniform), torus (uniform)")
     ap.add_argument("--no-eigensolve", action="store_true", help="skip the k = 100 eigensolve")
     ap.add_argument("--keep", default=None, help="folder for the meshes, pages and figures (default: temporary)")
-    ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
-        child(a.child[0], int(a.child[1]), a.child[2], not a.no_eigensolve)
+        what, kind, rest = a.child[0], a.child[1], a.child[2:]
+        {"make": lambda: make(kind, int(rest[0]), rest[1]), "stages": lambda: stages(kind, rest[0]),
+         "eigensolve": lambda: eigensolve(kind, rest[0])}[what]()
         return
     folder = a.keep or tempfile.mkdtemp(prefix="o3dheat-large-")
     Path(folder).mkdir(parents=True, exist_ok=True)
     for n in [int(s) for s in a.sizes.split(",")]:
         for kind in a.meshes.split(","):
+            rows, peaks = [], {}
             t0 = time.perf_counter()
-            cmd = [sys.executable, __file__, "--child", kind, str(n), folder] + (["--no-eigensolve"] * a.no_eigensolve)
-            p = subprocess.run(cmd, stdout=subprocess.PIPE, text=True)
-            wall = time.perf_counter() - t0
-            lines = [line for line in p.stdout.splitlines() if line.startswith("{")]
-            if p.returncode or not lines:
-                print(f"\n{kind} at {n:,}: the process failed (exit {p.returncode}) after {wall:.0f} s")
+            made, peak, code = child_process(["make", kind, str(n), folder])
+            if made is None:
+                print(f"\n{kind} at {n:,}: making the mesh failed (exit {code})")
                 continue
-            r = json.loads(lines[-1])
-            print(f"\n### {kind}: {r['n']:,} vertices, {r['faces']:,} faces\n")
+            rows.append({"stage": "make and write the mesh (set-up, a process)", "s": time.perf_counter() - t0,
+                         "peak": peak, "note": ""})
+            r, peak, code = child_process(["stages", kind, folder])
+            rows += r["rows"] if r else [{"stage": "the Python stages", "s": 0, "peak": peak, "note": f"exit {code}"}]
+            peaks["stages"] = peak
+            ply = str(Path(folder) / f"{kind}.ply")
+            for name, args in (("view", ["view", ply, "-o", str(Path(folder) / f"{kind}.html"), "--overwrite"]),
+                               ("figure", ["figure", ply, "-o", str(Path(folder) / f"{kind}-figures"), "--overwrite"])):
+                t1 = time.perf_counter()
+                out = command(args)
+                rows.append({"stage": f"o3dheat {name} (a process)", "s": time.perf_counter() - t1, **out})
+                peaks[name] = out["peak"]
+            if not a.no_eigensolve:
+                r, peak, code = child_process(["eigensolve", kind, folder])
+                rows += r["rows"] if r else [{"stage": "eigensolve k = 100", "s": 0, "peak": peak,
+                                              "note": f"exit {code}"}]
+                peaks["eigensolve"] = peak
+            print(f"\n### {kind}: {made['n']:,} vertices, {made['faces']:,} faces\n")
             print("| stage | s | peak GiB | |\n|---|---|---|---|")
-            for row in r["rows"]:
-                print(f"| {row['stage']} | {row['s']:.1f} | {row['peak'] / 2**30:.2f} | {row['note']} |")
-            total = sum(row["s"] for row in r["rows"][1:])
-            print(f"\ntotal (set-up excluded): {total / 60:.1f} min; the process' peak: {r['maxrss'] / 2**30:.2f} GiB; "
-                  f"the commands' peaks are in their rows")
+            for row in rows:
+                print(f"| {row['stage']} | {row['s']:.1f} | {row['peak'] / 2**30:.2f} | {row['note']} |", flush=True)
+            total = sum(row["s"] for row in rows[1:])
+            print(f"\ntotal (set-up excluded): {total / 60:.1f} min; each process' peak: "
+                  + ", ".join(f"{k} {v / 2**30:.2f} GiB" for k, v in peaks.items()))
     print(f"\n(meshes, pages and figures in {folder})")
 
 
