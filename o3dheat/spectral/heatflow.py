@@ -322,11 +322,13 @@ class HeatFlow:
         (:func:`shift_groups`) and memory allows making the next factor during the current group's
         solves, the current factor beside it (``(8 + index bytes) nnz(L) + 48 n``); the stored
         basis of the widest group (:data:`ESTIMATED_STEPS`, within the basis' budget); the result
-        (and its copy per input vertex when vertices were welded or set aside); 420 bytes per vertex
-        and 32 per vertex and field of operators' copies and work arrays, and 32 MiB. Calibrated
-        against the measured peaks at 250k, 1M, 2M and 4M vertices, 1, 8 and 32 fields, 10 and 20
-        times, on a curvature-adaptive and a uniform mesh (``docs/details/large.md``): 4-23% above
-        each. :meth:`apply` refuses what does not fit with :class:`~o3dheat.errors.OutOfMemory`.
+        (and its copy per input vertex when vertices were welded or set aside); 32 bytes per vertex
+        and field of work arrays, and 32 MiB. What the HeatFlow already holds (its operators and
+        symbolic analysis: 230-580 bytes per vertex) is not counted: the memory left is measured
+        after it was made. Calibrated against the peak of :meth:`apply` above the resident size
+        before it, at 250k, 1M, 2M and 4M vertices, 1, 8 and 32 fields, 10 and 20 times, on a
+        curvature-adaptive and a uniform mesh (``docs/details/large.md``). :meth:`apply` refuses
+        what does not fit with :class:`~o3dheat.errors.OutOfMemory`.
 
         Parameters
         ----------
@@ -358,7 +360,7 @@ class HeatFlow:
         steps = max([a + b * np.log10(taus[g[-1]] / taus[g[0]]) for g in groups], default=0.0)
         expanded = self._prep.weld is not None or len(self._prep.keep) != self._prep.n_input  # expand copies
         basis = min(8 * n * c * steps, self._basis_bytes(c, T))
-        peak = factor + basis + 8 * n * c * T * (2 if expanded else 1) + (420 + 32 * c) * n + 32 * 2**20
+        peak = factor + basis + 8 * n * c * T * (2 if expanded else 1) + 32 * c * n + 32 * 2**20
         if len(groups) > 1 and analysis is not None:
             free = available_memory()
             if free is None or free > 2 * (factor + self._basis_bytes(c, T)):  # as _room_for_another
