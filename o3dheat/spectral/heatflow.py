@@ -399,6 +399,9 @@ class HeatFlow:
             A field with NaN or of the wrong shape, a negative time, ``tol`` outside (0, 1).
         ConvergenceError
             The estimate did not reach ``tol`` within ``max_steps`` (the message says how far).
+        OutOfMemory
+            :meth:`peak_bytes` exceeds the memory left even after this flow's cached factors were
+            released (:meth:`release`; they are let go only when the estimate does not fit).
 
         Examples
         --------
@@ -419,7 +422,11 @@ class HeatFlow:
         prep = self._prep
         F = prep.restrict(f).reshape(len(prep.V), -1)
         c, T = F.shape[1], len(times)
-        check_memory(self.peak_bytes(c, times), f"the heat flow of {self.n:,} vertices, {c} field(s) x {T} times",
+        need = self.peak_bytes(c, times)
+        room = available_memory()
+        if room is not None and need > room:  # this flow's cached factors give their memory back first
+            self.release()
+        check_memory(need, f"the heat flow of {self.n:,} vertices, {c} field(s) x {T} times",
                      "ask for fewer fields or times at once, decimate the mesh, or use more memory")
         try:
             U, report = self._flow(F, times, tol, int(max_steps))

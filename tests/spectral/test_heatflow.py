@@ -7,7 +7,7 @@ import scipy.linalg as sla
 from conftest import grid, icosphere, irregular, torus
 
 import o3dheat
-from o3dheat.errors import ConvergenceError, MeshError
+from o3dheat.errors import ConvergenceError, MeshError, OutOfMemory
 from o3dheat.spectral import fem
 from o3dheat.spectral.heatflow import HeatFlow, heat_flow, shift
 from o3dheat.spectral.variants import VARIANTS, mass_of
@@ -451,6 +451,29 @@ def test_the_flow_is_refused_up_front_when_its_estimate_does_not_fit(monkeypatch
     monkeypatch.setattr(flow, "_flow", lambda *a: pytest.fail("the flow started"))
     with pytest.raises(OutOfMemory, match=r"the heat flow of 2,562 vertices, 1 field\(s\) x 2 times needs about"):
         flow.apply(V[:, 2], [1e-3, 1e-2])
+
+
+def test_the_flows_cached_factors_make_room_before_a_refusal(monkeypatch):
+    """Issue 35: at 10M vertices the paper's grid left its factor (6 GB) in the cache and the log
+    grid was then refused for want of it: a flow whose estimate does not fit releases its cached
+    factors first, and runs when that is enough (the same result as a fresh flow's)."""
+    import o3dheat.memory as mm
+
+    V, F = icosphere(3)
+    flow = HeatFlow((V, F), cache=False)
+    first = flow.apply(V[:, 2], [1e-3, 1e-2])
+    held = [key for key in flow._local if key[0] == "heatflow-factor"]
+    assert held  # the paper grid's factor, kept for the next call
+    need = flow.peak_bytes(1, [1e-1, 1.0])
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": need + (0 if flow._local.get(held[0]) else 1) - 1})
+    later = flow.apply(V[:, 2], [1e-1, 1.0])
+    assert not any(key[0] == "heatflow-factor" and key in held for key in flow._local)  # released
+    fresh = HeatFlow((V, F), cache=False).apply(V[:, 2], [1e-1, 1.0])
+    np.testing.assert_allclose(later, fresh, rtol=0, atol=1e-12)
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": need - 1})
+    with pytest.raises(OutOfMemory, match="the heat flow of 642 vertices"):
+        flow.apply(V[:, 2], [1e-1, 1.0])
+    assert first.shape == (len(V), 2)
 
 
 def test_a_groups_factor_is_freed_before_the_next_is_made(monkeypatch):
