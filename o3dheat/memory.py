@@ -10,7 +10,7 @@ from __future__ import annotations
 from o3dheat import parallel
 from o3dheat.errors import OutOfMemory
 
-__all__ = ["available_memory", "memory_limits", "check_memory", "peak_memory", "THREAD_ADDRESS_SPACE"]
+__all__ = ["available_memory", "memory_limits", "check_memory", "give_back", "peak_memory", "THREAD_ADDRESS_SPACE"]
 
 
 def available_memory() -> int | None:
@@ -188,6 +188,44 @@ def _dask_worker_room():
 _LIMIT_NAMES = {"cgroup": " (under the memory limit of this process's cgroup: a container's, a job's)",
                 "Dask worker": " (under the Dask worker's memory limit)",
                 "address space": " (under the address-space limit, ulimit -v)"}
+
+
+def give_back() -> None:
+    """Return the memory that C libraries freed to the system (glibc's ``malloc_trim(0)``; nothing
+    where the C library is another).
+
+    Libraries that make many mid-sized allocations (METIS's ordering, fast-simplification's
+    decimation) leave their freed memory in the C heap, still counted in the process' resident
+    size and no longer in the system's available memory, which :func:`check_memory` reads:
+    measured 234 bytes per vertex after the METIS analysis of a 1M-vertex ellipsoid (605 -> 371
+    held). Called after those steps; it takes milliseconds.
+
+    Examples
+    --------
+    >>> from o3dheat.memory import give_back
+    >>> give_back()
+    """
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
+
+
+def _malloc_trim():
+    """The C library's ``malloc_trim`` (glibc), or None (another C library)."""
+    global _TRIM
+    if _TRIM is False:
+        import ctypes
+        import ctypes.util
+
+        try:
+            _TRIM = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
+            _TRIM.argtypes, _TRIM.restype = [ctypes.c_size_t], ctypes.c_int
+        except (OSError, AttributeError):
+            _TRIM = None
+    return _TRIM
+
+
+_TRIM = False  # not looked up yet
 
 
 def check_memory(needed: int, what: str, advice: str) -> None:

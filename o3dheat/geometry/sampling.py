@@ -27,7 +27,7 @@ import numpy as np
 
 from o3dheat import checks
 from o3dheat.errors import MeshError
-from o3dheat.memory import check_memory
+from o3dheat.memory import check_memory, give_back
 
 from ._meshlab import area, bound_faces, faces_at, isotropic, meshset
 from ._tables import degenerate, non_manifold_edge_faces, non_manifold_vertex_mask, unique_rows, vertex_normals
@@ -241,6 +241,7 @@ def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = 
         vmap = None
         if vertex_map:
             V2, F2, vmap = fast_simplification.replay_simplification(V, F.astype(np.int32), collapses[0])
+    give_back()  # fast-simplification's freed work space, else held in the C heap
     _check_result(V2, F2, "decimate", params)  # (fast-simplification may remove more than asked)
     V2, F2, vmap = _clean(np.asarray(V2, np.float64), np.asarray(F2, np.int64),
                           None if vmap is None else np.asarray(vmap, np.int64))

@@ -39,7 +39,7 @@ import scipy.sparse as sp
 
 from o3dheat import parallel
 from o3dheat.errors import OutOfMemory, SolverError
-from o3dheat.memory import check_memory
+from o3dheat.memory import check_memory, give_back
 
 from . import _substitution
 
@@ -577,6 +577,7 @@ class Analysis:
                 api.cholmod_finish(common)
                 raise
         del keep
+        give_back()  # METIS's freed work space, else held in the C heap
         self.api, self.common, self.wide = api, common, api.wide
         self._finalizer = weakref.finalize(self, _free, api, ctypes.c_void_p(self.handle), [(common, None, None, None)])
         address = ctypes.addressof(common)
