@@ -242,15 +242,18 @@ def _solve_by(L, B, k, method, sigma, backend, seed, tol, block):
         # renumber the vertices for memory locality (reverse Cuthill-McKee): the products with L and
         # B, which read rows of blocks of vectors at the neighbours' indices, are 2x faster on meshes
         # stored in a scattered order (decimated, remeshed); the results are numbered back
+        what = f"the eigensolve of {k} eigenpairs on {L.shape[0]:,} vertices"
+        advice = ("ask for fewer eigenpairs, decimate the mesh, or smooth with o3dheat.heat_flow (the full "
+                  "heat kernel, without eigenpairs: a fraction of this memory)")
+        # what is known without the factor first: at 10M vertices the basis alone does not fit, and the
+        # ordering would take minutes before the refusal
+        check_memory(peak_memory(L.shape[0], k, block, 0), f"{what}, its factor aside,", advice)
         t0 = time.perf_counter()
         perm = reverse_cuthill_mckee(sp.csr_matrix(L), symmetric_mode=True)
         L, B = _permuted(L, perm), _permuted(B, perm)
         # the factor's size from its symbolic analysis (shared with the factorization): then the memory check
         analysis = analyze(L - s * B) if backend in ("auto", "cholmod") else None
-        check_memory(peak_memory(L.shape[0], k, block, None if analysis is None else analysis.nbytes),
-                     f"the eigensolve of {k} eigenpairs on {L.shape[0]:,} vertices",
-                     "ask for fewer eigenpairs, decimate the mesh, or smooth with o3dheat.heat_flow (the full "
-                     "heat kernel, without eigenpairs: a fraction of this memory)")
+        check_memory(peak_memory(L.shape[0], k, block, None if analysis is None else analysis.nbytes), what, advice)
         t_perm = time.perf_counter() - t0
         # BLAS on one thread from the factorization to the end (as in a small dense solve): BLAS
         # sums (ARPACK's dot products, a factorization's blocks) depend on its thread count, and

@@ -377,8 +377,19 @@ def test_eigensolve_refuses_what_does_not_fit_in_memory(monkeypatch, irregular_m
 
     monkeypatch.setattr(mm, "memory_limits", lambda: {"system": 10_000})  # bytes
     monkeypatch.setattr(S, "available_memory", lambda: 10_000)
+    analyze = S.analyze
+    monkeypatch.setattr(S, "analyze", lambda *a: pytest.fail("the ordering ran before the refusal"))
+    # the basis alone does not fit: refused before the ordering (minutes at 10M vertices)
+    with pytest.raises(OutOfMemory, match="eigenpairs on .* vertices, its factor aside, needs about .* GiB"):
+        o3dheat.eigensolve(irregular_mesh, k=20, method="lanczos")
+    # the rest fits, the factor does not: refused after its symbolic analysis, by the whole estimate
+    n = len(irregular_mesh[0])
+    room = mm.peak_memory(n, 20, 8, 0) + 1
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": room})
+    monkeypatch.setattr(S, "analyze", analyze)
     with pytest.raises(OutOfMemory, match="eigenpairs on .* vertices needs about .* GiB"):
         o3dheat.eigensolve(irregular_mesh, k=20, method="lanczos")
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": 10_000})
     with pytest.raises(OutOfMemory, match="dense eigensolve"):
         o3dheat.eigensolve(irregular_mesh, k=20, method="dense")
 
