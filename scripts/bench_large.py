@@ -21,9 +21,9 @@ noisy height (0.1 of its range, seed 0) on the paper's 10 scales and on 20 log s
 ``HeatFlow.peak_bytes``, the estimate it checks), critical points at every one of the 30 scales,
 the tracks of both grids; then the commands ``o3dheat view`` (defaults: it decimates the page,
 says so, and computes its own flow and scales) and ``o3dheat figure``; last the k = 100
-eigensolve (refused up front with its estimate, or run). For each stage: seconds and the largest
-resident set size during it (sampled every 20 ms); for the commands, their own peak (``wait4``'s
-``ru_maxrss``).
+eigensolve (refused up front with its estimate, or run). For each stage: seconds, the largest
+resident set size during it (sampled every 20 ms) and the resident size at its start (what the
+process already held); for the commands, their own peak (``wait4``'s ``ru_maxrss``).
 
     .venv/bin/python scripts/bench_large.py                       # scan and ellipsoid, 10M vertices
     .venv/bin/python scripts/bench_large.py --sizes 1000000       # a quicker check of the same stages
@@ -126,7 +126,7 @@ class Stages:
             time.sleep(0.02)
 
     def run(self, name, fn, *args):
-        self._peak = self._rss()
+        self._peak = start = self._rss()
         t0 = time.perf_counter()
         try:
             out = fn(*args)
@@ -137,7 +137,7 @@ class Stages:
         peak = max(self._peak, self._rss())
         if isinstance(out, dict):  # a command's own numbers
             note, peak = out.get("note", ""), out.get("peak", peak)
-        self.rows.append({"stage": name, "s": seconds, "peak": peak, "note": note})
+        self.rows.append({"stage": name, "s": seconds, "peak": peak, "start": start, "note": note})
         print(f"  {name}: {seconds:.1f} s, peak {peak / 2**30:.2f} GiB {note}", file=sys.stderr, flush=True)
         return out
 
@@ -297,9 +297,11 @@ def main():
                                               "note": f"exit {code}"}]
                 peaks["eigensolve"] = peak
             print(f"\n### {kind}: {made['n']:,} vertices, {made['faces']:,} faces\n")
-            print("| stage | s | peak GiB | |\n|---|---|---|---|")
+            print("| stage | s | peak GiB | at its start GiB | |\n|---|---|---|---|---|")
             for row in rows:
-                print(f"| {row['stage']} | {row['s']:.1f} | {row['peak'] / 2**30:.2f} | {row['note']} |", flush=True)
+                start = f"{row['start'] / 2**30:.2f}" if "start" in row else ""
+                print(f"| {row['stage']} | {row['s']:.1f} | {row['peak'] / 2**30:.2f} | {start} | {row['note']} |",
+                      flush=True)
             total = sum(row["s"] for row in rows[1:])
             print(f"\ntotal (set-up excluded): {total / 60:.1f} min; each process' peak: "
                   + ", ".join(f"{k} {v / 2**30:.2f} GiB" for k, v in peaks.items()))

@@ -287,7 +287,7 @@ def _prepared(mesh, field, noise, seed, max_faces, up, out, say):
     V, F, f = prep.V, prep.F, prep.restrict(f0)
     about = ""
     if max_faces is not None and len(F) > max_faces:
-        Vd, Fd = decimate((V, F), target_faces=max_faces).arrays
+        Vd, Fd = decimate((V, F), target_faces=max_faces, vertex_map=False).arrays
         about = (f"; decimated from {len(F):,} faces ({len(V):,} vertices) to {len(Fd):,} ({len(Vd):,}) first "
                  "(max_faces, --max-faces none keeps all), the field transferred")
         say(f"decimated {len(F):,} → {len(Fd):,} faces ({len(V):,} → {len(Vd):,} vertices): larger than max_faces "
