@@ -19,7 +19,6 @@ Moving functions between samplings: :mod:`o3dheat.geometry.interpolation`; point
 from __future__ import annotations
 
 import logging
-import threading
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -30,6 +29,7 @@ from o3dheat.errors import MeshError
 from o3dheat.memory import check_memory, give_back
 
 from ._meshlab import area, bound_faces, faces_at, isotropic, meshset
+from ._simplify import simplify
 from ._tables import degenerate, non_manifold_edge_faces, non_manifold_vertex_mask, unique_rows, vertex_normals
 from .mesh import as_arrays
 
@@ -42,10 +42,6 @@ __all__ = ["Resampled", "warm_up", "decimate", "decimate_bytes", "remesh", "anis
            "MIN_FACES", "REMESH_MAX_FACES"]
 
 log = logging.getLogger("o3dheat")
-#: fast-simplification keeps the mesh being decimated in module-level C++ state between its calls
-#: (load, simplify, return): two threads decimating at once read each other's mesh (an IndexError
-#: or a wrong mesh). Every call into it holds this lock.
-_FAST_SIMPLIFICATION = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -171,6 +167,11 @@ def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = 
              vertex_map: bool = True) -> Resampled:
     """Quadric decimation (fast-simplification): fewer vertices where the surface is flat.
 
+    One decimation at a time (fast-simplification's state is module-wide); a mesh of more than
+    ``o3dheat.geometry._simplify.CHILD_FACES`` (1M) faces is decimated in a forked child process,
+    so that the library's work space (about 300 bytes per face, which it keeps until exit) leaves
+    with it. The memory needed is checked first (:func:`decimate_bytes`).
+
     Parameters
     ----------
     mesh : Open3D mesh or (V, F)
@@ -213,8 +214,6 @@ def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = 
     >>> len(r.F), len(r.vertex_map)               # half of the 6240 faces; one entry per source vertex
     (3120, 3122)
     """
-    import fast_simplification
-
     checks.flag(vertex_map, "vertex_map")
     V, F = as_arrays(mesh)
     identity = np.arange(len(V)) if vertex_map else None  # the map of a decimation that removes nothing
@@ -235,12 +234,7 @@ def decimate(mesh: MeshLike, reduction: float = 0.7, target_faces: int | None = 
         return Resampled(V, F, "decimate", params, identity)
     check_memory(decimate_bytes(len(F), vertex_map), f"decimating {len(F):,} faces",
                  "decimate a part at a time, pass vertex_map=False, or use a machine with more memory")
-    with _FAST_SIMPLIFICATION:
-        V2, F2, *collapses = fast_simplification.simplify(V, F.astype(np.int32), target_reduction=float(reduction),
-                                                          return_collapses=vertex_map)
-        vmap = None
-        if vertex_map:
-            V2, F2, vmap = fast_simplification.replay_simplification(V, F.astype(np.int32), collapses[0])
+    V2, F2, vmap = simplify(V, F, float(reduction), vertex_map)  # one at a time; large ones in a child
     give_back()  # fast-simplification's freed work space, else held in the C heap
     _check_result(V2, F2, "decimate", params)  # (fast-simplification may remove more than asked)
     V2, F2, vmap = _clean(np.asarray(V2, np.float64), np.asarray(F2, np.int64),

@@ -292,3 +292,65 @@ def test_decimation_that_would_not_fit_in_memory_is_refused_before_it_starts(mon
     monkeypatch.setattr(fast_simplification, "simplify", lambda *a, **k: pytest.fail("fast-simplification started"))
     with pytest.raises(OutOfMemory, match=r"decimating 6,240 faces needs about 0\.\d\d GiB"):
         decimate(m, 0.5, vertex_map=False)
+
+
+def test_a_large_decimation_runs_in_a_child_with_the_same_result_and_leaves_no_memory(monkeypatch):
+    """Issue 35: fast-simplification's C++ vectors keep their capacity after a call (about 300
+    bytes per input face until exit: 6 GB after a 20M-face scan). Above CHILD_FACES the call runs
+    in a forked child: the same vertices, faces and map, bit for bit, and a fresh process's resident
+    size does not keep the decimation's memory."""
+    import os
+    import subprocess
+    import sys
+
+    import o3dheat.geometry._simplify as simp
+
+    if not hasattr(os, "fork"):
+        pytest.skip("no fork here")
+    m = o3d.t.geometry.TriangleMesh.create_torus(1.0, 0.3, 400, 200)  # 160k faces
+    inside = [decimate(m, 0.9), decimate(m, 0.9, vertex_map=False)]
+    monkeypatch.setattr(simp, "CHILD_FACES", 1000)
+    child = [decimate(m, 0.9), decimate(m, 0.9, vertex_map=False)]
+    for a, b in zip(inside, child, strict=True):
+        assert np.array_equal(a.V, b.V) and np.array_equal(a.F, b.F)
+        assert (a.vertex_map is None and b.vertex_map is None) or np.array_equal(a.vertex_map, b.vertex_map)
+    script = """
+import os, numpy as np, open3d as o3d
+import o3dheat.geometry._simplify as simp
+from o3dheat.geometry.sampling import decimate
+simp.CHILD_FACES = 1000
+m = o3d.t.geometry.TriangleMesh.create_torus(1.0, 0.3, 800, 400)
+V, F = m.vertex.positions.numpy(), m.triangle.indices.numpy()
+decimate(o3d.t.geometry.TriangleMesh.create_sphere(1.0, 10), 0.5)  # the modules warmed up
+def resident():
+    return int(open("/proc/self/statm").read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+before = resident()
+decimate((V, F), 0.9)
+print((resident() - before) / len(F))
+"""
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+    assert float(out.stdout.split()[-1]) < 60, out.stdout  # in the process itself: about 300 bytes per face
+
+
+def test_a_decimation_child_that_dies_is_said(monkeypatch):
+    """The child killed (the system's out-of-memory killer) or failing: a clear error, no hang."""
+    import os
+    import signal
+
+    import o3dheat.geometry._simplify as simp
+    from o3dheat.errors import OutOfMemory, SolverError
+
+    if not hasattr(os, "fork"):
+        pytest.skip("no fork here")
+    m = o3d.t.geometry.TriangleMesh.create_sphere(1.0, 40)
+    monkeypatch.setattr(simp, "CHILD_FACES", 1000)
+    monkeypatch.setattr(simp, "_simplify", lambda *a: os.kill(os.getpid(), signal.SIGKILL))
+    with pytest.raises(OutOfMemory, match="decimation of 6,240 faces was killed"):
+        decimate(m, 0.5)
+
+    def broken(*a):
+        raise ValueError("no such thing")
+
+    monkeypatch.setattr(simp, "_simplify", broken)
+    with pytest.raises(SolverError, match="fast-simplification failed on 6,240 faces: ValueError: no such thing"):
+        decimate(m, 0.5)
