@@ -7,10 +7,13 @@ cgroup's limit, a Dask worker's, ``ulimit -v``), :func:`check_memory`, which rai
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from o3dheat import parallel
 from o3dheat.errors import OutOfMemory
 
-__all__ = ["available_memory", "memory_limits", "check_memory", "give_back", "peak_memory", "THREAD_ADDRESS_SPACE"]
+__all__ = ["available_memory", "memory_limits", "check_memory", "give_back", "on_shortage", "peak_memory",
+           "THREAD_ADDRESS_SPACE"]
 
 
 def available_memory() -> int | None:
@@ -228,9 +231,34 @@ def _malloc_trim():
 _TRIM = False  # not looked up yet
 
 
+def on_shortage(release: Callable[[], object]) -> None:
+    """Register ``release``, which frees memory held only for reuse (the in-memory cache of
+    spectra and factors registers itself): :func:`check_memory` calls it before it refuses work,
+    then measures again. A module above this one hands its memory back without this module
+    importing it.
+
+    Parameters
+    ----------
+    release : callable
+        Called without arguments; registered once however often it is passed.
+
+    Examples
+    --------
+    >>> import o3dheat.memory as mm
+    >>> mm.on_shortage(lambda: None)
+    """
+    if release not in _SHORTAGE:
+        _SHORTAGE.append(release)
+
+
+_SHORTAGE: list[Callable[[], object]] = []
+
+
 def check_memory(needed: int, what: str, advice: str) -> None:
     """Raise :class:`~o3dheat.errors.OutOfMemory` when ``needed`` bytes exceed what this process may allocate
     (the message names the limit: the system's memory, a cgroup's, a Dask worker's, ulimit -v).
+    Before refusing, what is held only for reuse is released (:func:`on_shortage`: the in-memory
+    cache of spectra and factors) and the memory measured again.
 
     Parameters
     ----------
@@ -244,7 +272,7 @@ def check_memory(needed: int, what: str, advice: str) -> None:
     Raises
     ------
     OutOfMemory
-        ``needed`` exceeds the tightest limit of :func:`memory_limits`.
+        ``needed`` exceeds the tightest limit of :func:`memory_limits`, even after the release.
 
     Examples
     --------
@@ -253,6 +281,15 @@ def check_memory(needed: int, what: str, advice: str) -> None:
     """
     room = memory_limits()
     name = min(room, key=room.get) if room else None
+    if name is not None and needed > room[name] and _SHORTAGE:  # what is held for reuse goes first
+        import gc
+
+        for release in _SHORTAGE:
+            release()
+        gc.collect()
+        give_back()
+        room = memory_limits()
+        name = min(room, key=room.get) if room else None
     if name is not None and needed > room[name]:
         have = room[name]
         where = _LIMIT_NAMES.get(name, "")

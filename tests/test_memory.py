@@ -135,3 +135,24 @@ def test_give_back_returns_the_c_heaps_freed_memory():
     after = resident()
     libc.free(blocks[-1])
     assert before - after > 100 * 2**20, (before, after)
+
+
+def test_what_is_cached_for_reuse_makes_room_before_a_refusal(monkeypatch):
+    """Issue 35: at 10M vertices the cache kept a flow's 6 GB factor after the flow was gone (it
+    keeps its newest entry whatever its size), and later work saw that memory as used. A check
+    that does not fit empties the in-memory cache first, then measures again."""
+    import numpy as np
+
+    import o3dheat.spectral.cache as cache
+
+    key = ("test", "held for reuse")
+    cache.memoized(key, lambda: np.ones(10**6))
+    need = 10**9
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": need - 1 if cache.memoized_has(key) else need})
+    mm.check_memory(need, "this task", "nothing")  # fits once the cache is empty
+    assert not cache.memoized_has(key)
+    cache.memoized(key, lambda: np.ones(10))
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": need - 1})
+    with pytest.raises(OutOfMemory, match="this task needs about 0.93 GiB"):
+        mm.check_memory(need, "this task", "nothing")
+    assert not cache.memoized_has(key)  # emptied, and still refused

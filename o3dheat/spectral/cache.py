@@ -24,6 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from o3dheat.errors import MeshError
+from o3dheat.memory import on_shortage
 from o3dheat.typing import PathLike
 
 from . import _spectrum_files
@@ -322,6 +323,9 @@ def memoized_has(key: Hashable) -> bool:
     False
     """
     return key in SPECTRA
+
+
+on_shortage(clear_cache)  # a refused check (o3dheat.memory.check_memory) empties it first
 
 
 # ---- the disk entries of eigensolve(cache=...) ------------------------------------------------
