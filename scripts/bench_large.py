@@ -205,7 +205,8 @@ def stages(kind, folder):
         results[name] = st.run(f"heat_flow, {what}", smooth, t, name)
         if name in info:
             st.rows[-1]["note"] = info[name]
-    flow = None  # its factors' memory back
+    flow.release()  # its factors' memory back (the in-memory cache keeps its newest entry), as the page does
+    flow = None
     P, G = results["paper"], results["log"]
     if P is None or G is None:
         st.rows.append({"stage": "critical points, tracks", "s": 0.0, "peak": 0, "note": "skipped: no flow"})

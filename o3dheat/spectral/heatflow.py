@@ -87,6 +87,9 @@ KEPT_STEPS = 256
 #: times spanning a ratio R: ``a + b log10(R)`` (measured at tol 1e-8: 17 for one time, 22-27 for
 #: R = 10, 41 for R = 100, 31-39 for R = 60-300)
 ESTIMATED_STEPS = (17, 10)
+#: the stored basis is kept within at least this many bytes, whatever the memory left (the rest of
+#: its vectors regenerated: one more solve each)
+LEAST_BASIS_BYTES = 64 * 2**20
 
 
 class HeatFlow:
@@ -292,7 +295,7 @@ class HeatFlow:
         if free is None:
             return want
         pending = 8 * n * c * (T + 8)  # the result, written after the steps, and the steps' arrays
-        return max(min(want, (free - pending) // 2), 64 * 2**20)
+        return max(min(want, (free - pending) // 2), LEAST_BASIS_BYTES)
 
     def release(self) -> None:
         """Give back the memory of this flow's factors: they leave the in-memory cache (and this
@@ -313,7 +316,7 @@ class HeatFlow:
         for key in [k for k in self._local if k[0] == "heatflow-factor"]:
             del self._local[key]
 
-    def peak_bytes(self, c: int = 1, t: TimesLike = 1.0) -> int:
+    def peak_bytes(self, c: int = 1, t: TimesLike = 1.0, *, least: bool = False) -> int:
         """Estimated peak memory of :meth:`apply` with ``c`` fields at the times ``t``, in bytes,
         beyond what this HeatFlow holds (its operators).
 
@@ -328,7 +331,8 @@ class HeatFlow:
         after it was made. Calibrated against the peak of :meth:`apply` above the resident size
         before it, at 250k, 1M, 2M and 4M vertices, 1, 8 and 32 fields, 10 and 20 times, on a
         curvature-adaptive and a uniform mesh (``docs/details/large.md``). :meth:`apply` refuses
-        what does not fit with :class:`~o3dheat.errors.OutOfMemory`.
+        what does not fit with :class:`~o3dheat.errors.OutOfMemory`, by the least it can run with
+        (``least=True``).
 
         Parameters
         ----------
@@ -336,6 +340,12 @@ class HeatFlow:
             Fields (columns).
         t : float or (T,) array_like
             The times (paper convention).
+        least : bool
+            The least memory the flow can run with: the basis kept within 64 MiB and its other
+            vectors regenerated (one more solve each: the flow then takes up to twice as long;
+            :attr:`~o3dheat.spectral.krylov.Propagation.replayed` counts them), no factor made
+            beside another. The basis is kept within half of the memory left once the factor
+            is made, whatever this estimate.
 
         Returns
         -------
@@ -359,9 +369,9 @@ class HeatFlow:
         a, b = ESTIMATED_STEPS
         steps = max([a + b * np.log10(taus[g[-1]] / taus[g[0]]) for g in groups], default=0.0)
         expanded = self._prep.weld is not None or len(self._prep.keep) != self._prep.n_input  # expand copies
-        basis = min(8 * n * c * steps, self._basis_bytes(c, T))
+        basis = min(8 * n * c * steps, LEAST_BASIS_BYTES if least else self._basis_bytes(c, T))
         peak = factor + basis + 8 * n * c * T * (2 if expanded else 1) + 32 * c * n + 32 * 2**20
-        if len(groups) > 1 and analysis is not None:
+        if len(groups) > 1 and analysis is not None and not least:
             free = available_memory()
             if free is None or free > 2 * (factor + self._basis_bytes(c, T)):  # as _room_for_another
                 peak += (16 if analysis.wide else 12) * analysis.lnz + 48 * n  # the current factor, kept
@@ -422,7 +432,7 @@ class HeatFlow:
         prep = self._prep
         F = prep.restrict(f).reshape(len(prep.V), -1)
         c, T = F.shape[1], len(times)
-        need = self.peak_bytes(c, times)
+        need = self.peak_bytes(c, times, least=True)  # the basis is regenerated where it does not fit
         room = available_memory()
         if room is not None and need > room:  # this flow's cached factors give their memory back first
             self.release()

@@ -447,10 +447,34 @@ def test_the_flow_is_refused_up_front_when_its_estimate_does_not_fit(monkeypatch
     analysis = flow._ops.analysis
     assert analysis is None or one >= analysis.nbytes
     assert wide >= one  # two groups of times: a second factor beside the first, when there is room
-    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": one - 1})
+    least = flow.peak_bytes(1, [1e-3, 1e-2], least=True)
+    assert least <= one
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": least - 1})
     monkeypatch.setattr(flow, "_flow", lambda *a: pytest.fail("the flow started"))
     with pytest.raises(OutOfMemory, match=r"the heat flow of 2,562 vertices, 1 field\(s\) x 2 times needs about"):
         flow.apply(V[:, 2], [1e-3, 1e-2])
+
+
+def test_a_flow_that_fits_only_without_its_basis_runs_regenerating_it(monkeypatch):
+    """Issue 35: o3dheat view of a 10M-vertex ellipsoid was refused (16.57 GiB asked, 16.33 left)
+    by an estimate that kept the whole basis, which the flow regenerates where it does not fit: the
+    check is by the least it can run with, and the result is the same."""
+    import o3dheat.memory as mm
+    import o3dheat.spectral.heatflow as hf
+
+    V, F = icosphere(4)
+    f = V[:, 2] + 0.1 * np.random.default_rng(0).standard_normal(len(V))
+    t = np.geomspace(1e-3, 1e-1, 10)
+    ref = HeatFlow((V, F), cache=False).apply(f, t)
+    monkeypatch.setattr(hf, "LEAST_BASIS_BYTES", 8 * len(V) * 4)  # 4 steps kept (64 MiB: a larger mesh)
+    flow = HeatFlow((V, F), cache=False)
+    least, full = flow.peak_bytes(1, t, least=True), flow.peak_bytes(1, t)
+    assert least < full
+    room = (least + full) // 2
+    monkeypatch.setattr(mm, "memory_limits", lambda: {"system": room})
+    monkeypatch.setattr(hf, "available_memory", lambda: room)
+    out = flow.apply(f, t)  # not refused
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
 
 
 def test_the_flows_cached_factors_make_room_before_a_refusal(monkeypatch):
