@@ -115,10 +115,10 @@ def threads(n: int) -> Iterator[None]:
     >>> import numpy as np, scipy.sparse as sp
     >>> from o3dheat.spectral.linalg import factorize
     >>> from o3dheat.parallel import threads
-    >>> f = factorize(sp.diags([2.0, 4.0]).tocsc())
+    >>> f = factorize(sp.diags([4.0, 16.0]).tocsc())
     >>> with threads(1):
     ...     f.solve(np.ones((2, 3))).tolist()
-    [[0.5, 0.5, 0.5], [0.25, 0.25, 0.25]]
+    [[0.25, 0.25, 0.25], [0.0625, 0.0625, 0.0625]]
     """
     value = _check(n, "the number of threads")
     old = getattr(_LOCAL, "threads", None)
