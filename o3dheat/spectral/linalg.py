@@ -168,8 +168,8 @@ class Factor:
         Examples
         --------
         >>> import numpy as np, scipy.sparse as sp, o3dheat.spectral.linalg as la
-        >>> f = la.factorize(sp.diags([2.0, 4.0]).tocsc())
-        >>> f.release(); f.solve([2.0, 4.0]).tolist()
+        >>> f = la.factorize(sp.diags([4.0, 16.0]).tocsc())
+        >>> f.release(); f.solve([4.0, 16.0]).tolist()
         [1.0, 1.0]
         """
         release = getattr(self._solve, "release", None)
