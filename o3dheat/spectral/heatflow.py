@@ -65,7 +65,7 @@ from ._flow_setup import (
     transfer_plan,
     unit_columns,
 )
-from .cache import forget, memoized, memoized_has
+from .cache import forget, memoized, memoized_has, memory_cache_max_bytes
 from .kernel import NORMALIZATIONS, HeatKernel, first_nonzero, mass_of, transfer_function
 from .krylov import MIN_STEPS, propagate
 from .spectrum import eigensolve_operators, shared_eigensolve
@@ -325,12 +325,14 @@ class HeatFlow:
         (:func:`shift_groups`) and memory allows making the next factor during the current group's
         solves, the current factor beside it (``(8 + index bytes) nnz(L) + 48 n``); the stored
         basis of the widest group (:data:`ESTIMATED_STEPS`, within the basis' budget); the result
-        (and its copy per input vertex when vertices were welded or set aside); 32 bytes per vertex
+        (and its copy per input vertex when vertices were welded or set aside); with several groups,
+        the current factor beside the next one where it is kept (made during its solves, or within
+        the in-memory cache's budget); 32 bytes per vertex
         and field of work arrays, and 32 MiB. What the HeatFlow already holds (its operators and
         symbolic analysis: 230-580 bytes per vertex) is not counted: the memory left is measured
         after it was made. Calibrated against the peak of :meth:`apply` above the resident size
-        before it, at 250k, 1M, 2M and 4M vertices, 1, 8 and 32 fields, 10 and 20 times, on a
-        curvature-adaptive and a uniform mesh (``docs/details/large.md``). :meth:`apply` refuses
+        before it, at 250k, 1M and 2M vertices, 1, 8 and 32 fields, 10 and 20 times, on a
+        curvature-adaptive and a uniform mesh (``docs/details/large.md``): 4-33% above each. :meth:`apply` refuses
         what does not fit with :class:`~o3dheat.errors.OutOfMemory`, by the least it can run with
         (``least=True``).
 
@@ -372,9 +374,13 @@ class HeatFlow:
         basis = min(8 * n * c * steps, LEAST_BASIS_BYTES if least else self._basis_bytes(c, T))
         peak = factor + basis + 8 * n * c * T * (2 if expanded else 1) + 32 * c * n + 32 * 2**20
         if len(groups) > 1 and analysis is not None and not least:
+            # the current factor beside the next one: made during its solves (as _room_for_another),
+            # or kept by the cache (within its budget) or by a flow without the cache
+            kept = (16 if analysis.wide else 12) * analysis.lnz + 48 * n
             free = available_memory()
-            if free is None or free > 2 * (factor + self._basis_bytes(c, T)):  # as _room_for_another
-                peak += (16 if analysis.wide else 12) * analysis.lnz + 48 * n  # the current factor, kept
+            if (free is None or free > 2 * (factor + self._basis_bytes(c, T)) or not self.cache
+                    or kept <= memory_cache_max_bytes()):
+                peak += kept
         return int(peak)
 
     def apply(self, f: FieldLike, t: TimesLike, tol: float | None = None, *, return_report: bool = False,
