@@ -254,7 +254,7 @@ def on_shortage(release: Callable[[], object]) -> None:
 _SHORTAGE: list[Callable[[], object]] = []
 
 
-def check_memory(needed: int, what: str, advice: str) -> None:
+def check_memory(needed: int, what: str, advice: str, *, release: Callable[[], object] | None = None) -> None:
     """Raise :class:`~o3dheat.errors.OutOfMemory` when ``needed`` bytes exceed what this process may allocate
     (the message names the limit: the system's memory, a cgroup's, a Dask worker's, ulimit -v).
     Before refusing, what is held only for reuse is released (:func:`on_shortage`: the in-memory
@@ -268,6 +268,8 @@ def check_memory(needed: int, what: str, advice: str) -> None:
         The work, as the message names it.
     advice : str
         What to do instead, ending the message.
+    release : callable, optional
+        The caller's own memory held for reuse, released with the registered ones before a refusal.
 
     Raises
     ------
@@ -280,16 +282,16 @@ def check_memory(needed: int, what: str, advice: str) -> None:
     >>> mm.check_memory(1024, "a small task", "nothing")         # fits: no error
     """
     room = memory_limits()
-    name = min(room, key=room.get) if room else None
-    if name is not None and needed > room[name] and _SHORTAGE:  # what is held for reuse goes first
+    releases = _SHORTAGE + ([release] if release is not None else [])
+    if room and needed > min(room.values()) and releases:  # what is held for reuse goes first
         import gc
 
-        for release in _SHORTAGE:
-            release()
+        for free in releases:
+            free()
         gc.collect()
         give_back()
         room = memory_limits()
-        name = min(room, key=room.get) if room else None
+    name = min(room, key=room.get) if room else None
     if name is not None and needed > room[name]:
         have = room[name]
         where = _LIMIT_NAMES.get(name, "")

@@ -377,9 +377,7 @@ class HeatFlow:
             # the current factor beside the next one: made during its solves (as _room_for_another),
             # or kept by the cache (within its budget) or by a flow without the cache
             kept = (16 if analysis.wide else 12) * analysis.lnz + 48 * n
-            free = available_memory()
-            if (free is None or free > 2 * (factor + self._basis_bytes(c, T)) or not self.cache
-                    or kept <= memory_cache_max_bytes()):
+            if self._room_beside(factor, c, T) or not self.cache or kept <= memory_cache_max_bytes():
                 peak += kept
         return int(peak)
 
@@ -438,12 +436,11 @@ class HeatFlow:
         prep = self._prep
         F = prep.restrict(f).reshape(len(prep.V), -1)
         c, T = F.shape[1], len(times)
-        need = self.peak_bytes(c, times, least=True)  # the basis is regenerated where it does not fit
-        room = available_memory()
-        if room is not None and need > room:  # this flow's cached factors give their memory back first
-            self.release()
-        check_memory(need, f"the heat flow of {self.n:,} vertices, {c} field(s) x {T} times",
-                     "ask for fewer fields or times at once, decimate the mesh, or use more memory")
+        # by the least it can run with (the basis regenerated where it does not fit); this flow's
+        # own factors, like the cache, give their memory back before a refusal
+        check_memory(self.peak_bytes(c, times, least=True), f"the heat flow of {self.n:,} vertices, {c} field(s) x "
+                     f"{T} times", "ask for fewer fields or times at once, decimate the mesh, or use more memory",
+                     release=self.release)
         try:
             U, report = self._flow(F, times, tol, int(max_steps))
         except MemoryError as e:  # numba's or numpy's allocation: said as the eigensolver says it
@@ -538,9 +535,12 @@ class HeatFlow:
         its peak, known from the symbolic analysis, else three times a factor, and a basis): else
         the next factor is made after them, once the current one is freed (and dropped from the
         cache when it does not fit its budget): a 10M-vertex factor is 5-9 GB."""
-        free = available_memory()
         analysis = self._ops.analysis
-        peak = analysis.nbytes if analysis is not None else 3 * shifted.nbytes
+        return self._room_beside(analysis.nbytes if analysis is not None else 3 * shifted.nbytes, c, T)
+
+    def _room_beside(self, peak, c, T):
+        """Whether a factorization of ``peak`` bytes and a basis fit twice over in the memory left."""
+        free = available_memory()
         return free is None or free > 2 * (peak + self._basis_bytes(c, T))
 
     def _factor_key(self, gamma):
